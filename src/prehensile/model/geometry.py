@@ -1,0 +1,89 @@
+"""Geometric shapes attached to links and scene objects (SI units).
+
+Every shape sits in its own frame: boxes, spheres and ellipsoids are centred on its origin;
+cylinders and capsules are centred on it with their axis along z (URDF convention).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import cached_property
+from pathlib import Path
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Box:
+    """Box with full side lengths ``size`` (m), shape (3,)."""
+
+    size: tuple[float, float, float]
+
+
+@dataclass(frozen=True)
+class Sphere:
+    radius: float
+
+
+@dataclass(frozen=True)
+class Cylinder:
+    """Cylinder of ``radius`` and total ``length`` (m) along z."""
+
+    radius: float
+    length: float
+
+
+@dataclass(frozen=True)
+class Capsule:
+    """Capsule: cylinder of ``radius`` and ``length`` (m) along z with hemispherical caps."""
+
+    radius: float
+    length: float
+
+
+@dataclass(frozen=True, eq=False)
+class Mesh:
+    """Triangle mesh read from ``path`` and scaled per axis by ``scale``.
+
+    The file is read on first use of :attr:`trimesh`.
+    """
+
+    path: Path
+    scale: tuple[float, float, float] = (1.0, 1.0, 1.0)
+
+    @cached_property
+    def trimesh(self):
+        """The mesh as a ``trimesh.Trimesh`` (scenes are merged into one mesh)."""
+        import trimesh
+
+        loaded = trimesh.load(self.path, force="mesh", process=False)
+        mesh = loaded.copy()
+        mesh.apply_scale(np.asarray(self.scale, dtype=float))
+        return mesh
+
+
+Shape = Box | Sphere | Cylinder | Capsule | Mesh
+
+
+@dataclass(frozen=True, eq=False)
+class Geometry:
+    """A shape placed in a link (or object) frame by ``T_link_geom`` (4, 4)."""
+
+    shape: Shape
+    T_link_geom: np.ndarray = field(default_factory=lambda: np.eye(4))
+    name: str = ""
+
+
+def shape_to_trimesh(shape: Shape, sections: int = 24):
+    """A triangle mesh of ``shape`` in its own frame (used for drawing and sphere fitting)."""
+    import trimesh
+
+    if isinstance(shape, Box):
+        return trimesh.creation.box(extents=shape.size)
+    if isinstance(shape, Sphere):
+        return trimesh.creation.icosphere(subdivisions=2, radius=shape.radius)
+    if isinstance(shape, Cylinder):
+        return trimesh.creation.cylinder(radius=shape.radius, height=shape.length, sections=sections)
+    if isinstance(shape, Capsule):
+        return trimesh.creation.capsule(radius=shape.radius, height=shape.length, count=[sections, sections])
+    return shape.trimesh

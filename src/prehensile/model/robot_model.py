@@ -1,0 +1,214 @@
+"""The immutable robot description shared by every algorithm.
+
+A model is a tree of links. Each link but the root is moved relative to its parent by one
+joint: ``T_parent_link = joint_origin @ motion(joint_type, joint_axis, value)`` where
+``value = joint_multiplier * q[joint_q_index] + joint_offset`` (fixed joints have no value;
+mimic joints share the q index of the joint they follow). Links are stored parents-first, so a
+single forward sweep computes all poses.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from types import MappingProxyType
+from typing import Mapping
+
+import numpy as np
+
+from prehensile.errors import UnknownFrameError
+from prehensile.model.geometry import Geometry
+
+FIXED, REVOLUTE, PRISMATIC = 0, 1, 2
+
+
+@dataclass(frozen=True)
+class Chain:
+    """A named serial chain from ``base_link`` to ``tip_link`` driving the joints in ``joint_names``."""
+
+    name: str
+    base_link: str
+    tip_link: str
+    joint_names: tuple[str, ...]
+
+
+@dataclass(frozen=True, eq=False)
+class EndEffector:
+    """A hand or gripper.
+
+    Attributes:
+        name: end-effector name.
+        base_link: link the hand is mounted on (the last link of the arm).
+        tcp_link: link the tool centre point is attached to.
+        T_link_tcp: pose (4, 4) of the TCP in ``tcp_link``.
+        T_link_gcp: pose (4, 4) of the grasp centre point in ``tcp_link`` (the TCP if unknown).
+        finger_joints: actuated joints of the hand.
+        preshapes: named finger configurations, joint name -> value (rad or m).
+        chain: name of the arm chain that carries the hand, "" if none.
+    """
+
+    name: str
+    base_link: str
+    tcp_link: str
+    T_link_tcp: np.ndarray = field(default_factory=lambda: np.eye(4))
+    T_link_gcp: np.ndarray = field(default_factory=lambda: np.eye(4))
+    finger_joints: tuple[str, ...] = ()
+    preshapes: Mapping[str, Mapping[str, float]] = field(default_factory=dict)
+    chain: str = ""
+
+
+def _frozen(array, dtype) -> np.ndarray:
+    out = np.ascontiguousarray(array, dtype=dtype)
+    out.setflags(write=False)
+    return out
+
+
+@dataclass(frozen=True, eq=False)
+class RobotModel:
+    """Kinematic tree, limits, geometry, chains and end effectors of one robot.
+
+    Per-link arrays (L = number of links) describe the joint that moves the link:
+    ``link_parent`` (L,) parent index (-1 for the root), ``joint_type`` (L,) FIXED / REVOLUTE /
+    PRISMATIC, ``joint_origin`` (L, 4, 4) pose of the joint frame in the parent link,
+    ``joint_axis`` (L, 3) unit axis in the joint frame, ``joint_q_index`` (L,) index into q
+    (-1 for fixed), ``joint_multiplier`` and ``joint_offset`` (L,) for mimic joints.
+    Per-DoF arrays (dof,) hold limits in rad or m: ``lower``, ``upper`` (+-inf for continuous
+    joints), ``velocity_limit`` (rad/s or m/s).
+    """
+
+    name: str
+    source: str
+    link_names: tuple[str, ...]
+    link_joint_names: tuple[str, ...]
+    link_parent: np.ndarray
+    joint_type: np.ndarray
+    joint_origin: np.ndarray
+    joint_axis: np.ndarray
+    joint_q_index: np.ndarray
+    joint_multiplier: np.ndarray
+    joint_offset: np.ndarray
+    joint_names: tuple[str, ...]
+    lower: np.ndarray
+    upper: np.ndarray
+    velocity_limit: np.ndarray
+    visuals: tuple[tuple[Geometry, ...], ...]
+    collisions: tuple[tuple[Geometry, ...], ...]
+    chains: Mapping[str, Chain] = field(default_factory=dict)
+    end_effectors: Mapping[str, EndEffector] = field(default_factory=dict)
+    disabled_collision_pairs: frozenset[frozenset[str]] = frozenset()
+
+    def __post_init__(self) -> None:
+        for name, dtype in [
+            ("link_parent", np.int64), ("joint_type", np.int64), ("joint_q_index", np.int64),
+            ("joint_origin", float), ("joint_axis", float), ("joint_multiplier", float),
+            ("joint_offset", float), ("lower", float), ("upper", float), ("velocity_limit", float),
+        ]:
+            object.__setattr__(self, name, _frozen(getattr(self, name), dtype))
+        object.__setattr__(self, "chains", MappingProxyType(dict(self.chains)))
+        object.__setattr__(self, "end_effectors", MappingProxyType(dict(self.end_effectors)))
+        object.__setattr__(self, "_link_index", {n: i for i, n in enumerate(self.link_names)})
+        object.__setattr__(self, "_joint_index", {n: i for i, n in enumerate(self.joint_names)})
+
+    @property
+    def dof(self) -> int:
+        """Number of configuration variables (length of q)."""
+        return len(self.joint_names)
+
+    @property
+    def n_links(self) -> int:
+        return len(self.link_names)
+
+    @property
+    def continuous(self) -> np.ndarray:
+        """(dof,) bool: joints without position limits."""
+        return ~np.isfinite(self.lower) | ~np.isfinite(self.upper)
+
+    def link_index(self, name: str) -> int:
+        """Index of link ``name`` in :attr:`link_names` (the order of FK output)."""
+        try:
+            return self._link_index[name]
+        except KeyError:
+            raise UnknownFrameError(
+                f"robot '{self.name}' has no link '{name}'; links: {', '.join(self.link_names)}"
+            ) from None
+
+    def joint_index(self, name: str) -> int:
+        """Index of joint ``name`` in q."""
+        try:
+            return self._joint_index[name]
+        except KeyError:
+            raise UnknownFrameError(
+                f"robot '{self.name}' has no actuated joint '{name}'; joints: {', '.join(self.joint_names)}"
+            ) from None
+
+    def chain(self, name: str) -> Chain:
+        """The chain called ``name``."""
+        try:
+            return self.chains[name]
+        except KeyError:
+            raise UnknownFrameError(
+                f"robot '{self.name}' has no chain '{name}'; chains: {', '.join(self.chains) or '(none)'}"
+            ) from None
+
+    def end_effector(self, name: str) -> EndEffector:
+        """The end effector called ``name``."""
+        try:
+            return self.end_effectors[name]
+        except KeyError:
+            raise UnknownFrameError(
+                f"robot '{self.name}' has no end effector '{name}'; "
+                f"end effectors: {', '.join(self.end_effectors) or '(none)'}"
+            ) from None
+
+    def chain_q_indices(self, name: str) -> np.ndarray:
+        """Indices into q of the joints of chain ``name``, shape (n,)."""
+        return np.array([self.joint_index(j) for j in self.chain(name).joint_names], dtype=np.int64)
+
+    def path_to_root(self, link: str | int) -> list[int]:
+        """Link indices from ``link`` up to the root, both included."""
+        index = self.link_index(link) if isinstance(link, str) else int(link)
+        path = []
+        while index >= 0:
+            path.append(index)
+            index = int(self.link_parent[index])
+        return path
+
+    def neutral_configuration(self) -> np.ndarray:
+        """Zero clipped into the limits, shape (dof,)."""
+        return np.clip(np.zeros(self.dof), self.lower, self.upper)
+
+    def random_configurations(self, rng: np.random.Generator | int, n: int | None = None) -> np.ndarray:
+        """Uniform samples within the limits; continuous joints in [-pi, pi].
+
+        Returns shape (dof,) when ``n`` is None, else (n, dof).
+        """
+        rng = np.random.default_rng(rng)
+        lo = np.where(np.isfinite(self.lower), self.lower, -np.pi)
+        hi = np.where(np.isfinite(self.upper), self.upper, np.pi)
+        size = (self.dof,) if n is None else (n, self.dof)
+        return rng.uniform(lo, hi, size=size)
+
+    def within_limits(self, q: np.ndarray, tol: float = 1e-9) -> np.ndarray:
+        """(*batch,) bool: q of shape (*batch, dof) lies within the position limits."""
+        q = np.asarray(q, dtype=float)
+        return np.all((q >= self.lower - tol) & (q <= self.upper + tol), axis=-1)
+
+    def check_configuration(self, q: np.ndarray, what: str = "q") -> np.ndarray:
+        """Validate q of shape (*batch, dof): right length and finite; returns it as float64."""
+        from prehensile.errors import PrehensileError
+
+        q = np.asarray(q, dtype=float)
+        if q.ndim == 0 or q.shape[-1] != self.dof:
+            raise PrehensileError(
+                f"{what}: expected shape (..., {self.dof}) for robot '{self.name}' "
+                f"(joints: {', '.join(self.joint_names)}), got {q.shape}"
+            )
+        if not np.all(np.isfinite(q)):
+            raise PrehensileError(f"{what}: contains NaN or infinite values")
+        return q
+
+    def configuration_from_dict(self, values: Mapping[str, float], base: np.ndarray | None = None) -> np.ndarray:
+        """q (dof,) with the named joints set and the rest taken from ``base`` (default neutral)."""
+        q = self.neutral_configuration() if base is None else np.array(base, dtype=float)
+        for joint, value in values.items():
+            q[self.joint_index(joint)] = float(value)
+        return q

@@ -1,0 +1,98 @@
+"""SRDF reader: planning groups become chains, end effectors with their group states as
+preshapes, and disabled collision pairs."""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+from prehensile.errors import ModelError
+from prehensile.model.builder import resolve_chain
+from prehensile.model.robot_model import Chain, EndEffector, RobotModel
+from prehensile.model.xml_utils import number, parse_xml, required
+
+
+def _group_joints(model: RobotModel, groups: dict, name: str, source: str, seen: tuple = ()) -> list[str]:
+    if name in seen:
+        raise ModelError(f"{source}: group '{name}' contains itself")
+    if name not in groups:
+        raise ModelError(f"{source}: unknown group '{name}'; groups: {', '.join(groups)}")
+    joints: list[str] = []
+    for el in groups[name]:
+        where = f"{source}: group '{name}' <{el.tag}>"
+        if el.tag == "chain":
+            chain = Chain(name, required(el, "base_link", where), required(el, "tip_link", where), ())
+            joints += resolve_chain(model, chain).joint_names
+        elif el.tag == "joint":
+            joint = required(el, "name", where)
+            if joint in model.joint_names:
+                joints.append(joint)
+            elif joint not in model.link_joint_names:
+                raise ModelError(f"{where}: unknown joint '{joint}'")
+        elif el.tag == "group":
+            joints += _group_joints(model, groups, required(el, "name", where), source, seen + (name,))
+    return list(dict.fromkeys(joints))
+
+
+def _group_chain(model: RobotModel, groups: dict, name: str, source: str) -> Chain | None:
+    """A chain for the group: its <chain> if it has one, else the span of its joints."""
+    for el in groups[name]:
+        if el.tag == "chain":
+            return resolve_chain(model, Chain(name, el.get("base_link"), el.get("tip_link"), ()))
+    joints = _group_joints(model, groups, name, source)
+    if not joints:
+        return None
+    links = [i for i, j in enumerate(model.link_joint_names) if j in joints]
+    tip = max(links, key=lambda i: len(model.path_to_root(i)))
+    base = model.link_names[int(model.link_parent[min(links, key=lambda i: len(model.path_to_root(i)))])]
+    return Chain(name, base, model.link_names[tip], tuple(joints))
+
+
+def apply_srdf(model: RobotModel, path: str | Path) -> RobotModel:
+    """Return ``model`` with the chains, end effectors and disabled pairs of the SRDF at ``path``."""
+    path = Path(path)
+    root = parse_xml(path)
+    source = str(path)
+    groups = {required(g, "name", f"{source}: <group>"): list(g) for g in root.findall("group")}
+    chains = dict(model.chains)
+    for name in groups:
+        chain = _group_chain(model, groups, name, source)
+        if chain is not None:
+            chains[name] = chain
+
+    states: dict[str, dict[str, dict[str, float]]] = {}
+    for el in root.findall("group_state"):
+        where = f"{source}: group_state '{el.get('name')}'"
+        values = {
+            required(j, "name", where): number(j, "value", where) for j in el.findall("joint")
+        }
+        states.setdefault(required(el, "group", where), {})[required(el, "name", where)] = values
+
+    end_effectors = dict(model.end_effectors)
+    for el in root.findall("end_effector"):
+        where = f"{source}: end_effector '{el.get('name')}'"
+        name = required(el, "name", where)
+        parent_link = required(el, "parent_link", where)
+        model.link_index(parent_link)
+        group = required(el, "group", where)
+        end_effectors[name] = EndEffector(
+            name=name,
+            base_link=parent_link,
+            tcp_link=parent_link,
+            finger_joints=tuple(_group_joints(model, groups, group, source)),
+            preshapes=states.get(group, {}),
+            chain=el.get("parent_group", ""),
+        )
+
+    disabled = set(model.disabled_collision_pairs)
+    for el in root.findall("disable_collisions"):
+        where = f"{source}: disable_collisions"
+        a, b = required(el, "link1", where), required(el, "link2", where)
+        for link in (a, b):
+            if link not in model.link_names:
+                raise ModelError(f"{where} names unknown link '{link}'")
+        if a != b:
+            disabled.add(frozenset((a, b)))
+    return dataclasses.replace(
+        model, chains=chains, end_effectors=end_effectors, disabled_collision_pairs=frozenset(disabled)
+    )
