@@ -31,16 +31,15 @@ class Chain:
     joint_names: tuple[str, ...]
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True)
 class EndEffector:
-    """A hand or gripper.
+    """A hand or gripper. TCP and GCP are links (usually fixed frames in the hand).
 
     Attributes:
         name: end-effector name.
         base_link: link the hand is mounted on (the last link of the arm).
-        tcp_link: link the tool centre point is attached to.
-        T_link_tcp: pose (4, 4) of the TCP in ``tcp_link``.
-        T_link_gcp: pose (4, 4) of the grasp centre point in ``tcp_link`` (the TCP if unknown).
+        tcp_link: the tool centre point frame.
+        gcp_link: the grasp centre point frame (approach target of grasp planners).
         finger_joints: actuated joints of the hand.
         preshapes: named finger configurations, joint name -> value (rad or m).
         chain: name of the arm chain that carries the hand, "" if none.
@@ -49,8 +48,7 @@ class EndEffector:
     name: str
     base_link: str
     tcp_link: str
-    T_link_tcp: np.ndarray = field(default_factory=lambda: np.eye(4))
-    T_link_gcp: np.ndarray = field(default_factory=lambda: np.eye(4))
+    gcp_link: str = ""
     finger_joints: tuple[str, ...] = ()
     preshapes: Mapping[str, Mapping[str, float]] = field(default_factory=dict)
     chain: str = ""

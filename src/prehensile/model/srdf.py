@@ -73,12 +73,17 @@ def apply_srdf(model: RobotModel, path: str | Path) -> RobotModel:
         where = f"{source}: end_effector '{el.get('name')}'"
         name = required(el, "name", where)
         parent_link = required(el, "parent_link", where)
-        model.link_index(parent_link)
+        # tcp_link / gcp_link are prehensile's additions to the SRDF element (MoveIt ignores them)
+        tcp_link = el.get("tcp_link", parent_link)
+        for link in (parent_link, tcp_link, el.get("gcp_link", tcp_link)):
+            if link not in model.link_names:
+                raise ModelError(f"{where} names unknown link '{link}'")
         group = required(el, "group", where)
         end_effectors[name] = EndEffector(
             name=name,
             base_link=parent_link,
-            tcp_link=parent_link,
+            tcp_link=tcp_link,
+            gcp_link=el.get("gcp_link", tcp_link),
             finger_joints=tuple(_group_joints(model, groups, group, source)),
             preshapes=states.get(group, {}),
             chain=el.get("parent_group", ""),

@@ -10,6 +10,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from prehensile.collision.world import Obstacle
 from prehensile.model.geometry import Geometry
 from prehensile.model.robot_model import RobotModel
 
@@ -54,3 +55,11 @@ class Scene:
     def bodies(self) -> tuple[Body, ...]:
         """Obstacles and objects: everything a robot may collide with."""
         return self.obstacles + self.objects
+
+    def collision_obstacles(self) -> list[Obstacle]:
+        """Every shape of every obstacle and object, placed in the world."""
+        return [
+            Obstacle(body.name, geometry.shape, T_world_geom)
+            for body in self.bodies
+            for geometry, T_world_geom in body.world_geometries()
+        ]
