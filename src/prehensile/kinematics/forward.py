@@ -1,26 +1,34 @@
 """Forward kinematics and frame Jacobians for batches of configurations.
 
 ``q`` has shape (*batch, dof); a single configuration is a batch of none. Poses are
-``T_world_link`` (m), with the robot base at ``T_world_base`` (identity by default).
+``T_world_link`` (m), with the robot's root link at ``T_world_base`` (identity by default).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from prehensile.errors import PrehensileError
 from prehensile.kinematics import kernels
 from prehensile.model.robot_model import RobotModel
 
 _EYE = np.eye(4)
 
 
-def _arrays(model: RobotModel):
-    return (model.link_parent, model.joint_type, model.joint_origin, model.joint_axis,
-            model.joint_q_index, model.joint_multiplier, model.joint_offset)
-
-
 def _base(T_world_base) -> np.ndarray:
     return _EYE if T_world_base is None else np.ascontiguousarray(T_world_base, dtype=float)
+
+
+def _flat(model: RobotModel, q) -> tuple[np.ndarray, tuple[int, ...]]:
+    q = np.asarray(q, dtype=float)
+    if q.ndim == 0 or q.shape[-1] != model.dof:
+        model.check_configuration(q)  # raises the descriptive error
+    return np.ascontiguousarray(q.reshape(-1, model.dof)), q.shape[:-1]
+
+
+def _non_finite(row: int, batch: tuple[int, ...]) -> PrehensileError:
+    where = f" at batch index {np.unravel_index(row, batch)}" if batch else ""
+    return PrehensileError(f"q contains NaN or infinite values{where}")
 
 
 def forward_kinematics(model: RobotModel, q: np.ndarray, T_world_base: np.ndarray | None = None) -> np.ndarray:
@@ -29,21 +37,26 @@ def forward_kinematics(model: RobotModel, q: np.ndarray, T_world_base: np.ndarra
     Args:
         q: joint values (rad or m), shape (*batch, dof).
         T_world_base: pose (4, 4) of the root link in the world; identity if None.
+
+    Raises:
+        PrehensileError: q has the wrong length or holds NaN / infinite values.
     """
-    q = model.check_configuration(q)
-    batch = q.shape[:-1]
-    flat = np.ascontiguousarray(q.reshape(-1, model.dof))
+    if isinstance(q, np.ndarray) and q.shape == (model.dof,) and q.dtype == np.float64:
+        out = np.empty((model.n_links, 4, 4))  # fast path for one configuration
+        if not kernels.fk_into(q, _base(T_world_base), model.joint_table, out):
+            raise _non_finite(0, ())
+        return out
+    flat, batch = _flat(model, q)
     out = np.empty((flat.shape[0], model.n_links, 4, 4))
-    if flat.shape[0] == 1:
-        kernels.fk_single(flat[0], _base(T_world_base), *_arrays(model), out[0])
-    else:
-        kernels.fk_batch(flat, _base(T_world_base), *_arrays(model), out)
+    bad = kernels.fk_batch_into(flat, _base(T_world_base), model.joint_table, out)
+    if bad >= 0:
+        raise _non_finite(bad, batch)
     return out.reshape(batch + (model.n_links, 4, 4))
 
 
 def link_pose(model: RobotModel, q: np.ndarray, link: str, T_link_frame: np.ndarray | None = None,
               T_world_base: np.ndarray | None = None) -> np.ndarray:
-    """Pose (*batch, 4, 4) of ``link`` (times ``T_link_frame`` if given, e.g. a TCP offset)."""
+    """Pose (*batch, 4, 4) of ``link``, times ``T_link_frame`` (4, 4) if given (e.g. a tool offset)."""
     pose = forward_kinematics(model, q, T_world_base)[..., model.link_index(link), :, :]
     return pose if T_link_frame is None else pose @ T_link_frame
 
@@ -56,31 +69,28 @@ def frame_jacobian(
     frame: str = "world",
     T_world_base: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Pose and Jacobian of a frame fixed to ``link``.
+    """Pose and Jacobian of a frame fixed to ``link`` (at ``T_link_frame``, default the link frame).
 
-    The Jacobian maps joint velocities (dof,) to the frame's (linear, angular) velocity:
-    rows 0-2 the velocity of the frame origin (m/s), rows 3-5 the angular velocity (rad/s).
-    ``frame="world"`` expresses both in world axes (pinocchio's LOCAL_WORLD_ALIGNED);
-    ``frame="local"`` in the frame's own axes (pinocchio's LOCAL).
+    The Jacobian maps joint velocities (dof,) to the frame's twist: rows 0-2 the velocity of
+    the frame origin (m/s), rows 3-5 the angular velocity (rad/s). ``frame="world"`` expresses
+    both in world axes (pinocchio's LOCAL_WORLD_ALIGNED); ``frame="local"`` in the frame's own
+    axes (pinocchio's LOCAL).
 
     Returns:
         (pose (*batch, 4, 4), jacobian (*batch, 6, dof)).
     """
     if frame not in ("world", "local"):
-        raise ValueError(f"frame must be 'world' or 'local', got '{frame}'")
-    q = model.check_configuration(q)
-    batch = q.shape[:-1]
-    flat = np.ascontiguousarray(q.reshape(-1, model.dof))
+        raise PrehensileError(f"frame must be 'world' or 'local', got '{frame}'")
+    flat, batch = _flat(model, q)
+    index = model.link_index(link)
     point = np.zeros(3) if T_link_frame is None else np.ascontiguousarray(T_link_frame[:3, 3], dtype=float)
     poses = np.empty((flat.shape[0], model.n_links, 4, 4))
     jac = np.empty((flat.shape[0], 6, model.dof))
-    index = model.link_index(link)
-    local = frame == "local"
-    kernels.fk_jacobian_batch(flat, _base(T_world_base), index, point, False, *_arrays(model), poses, jac)
-    pose = poses[:, index]
-    if T_link_frame is not None:
-        pose = pose @ T_link_frame
-    if local:
+    bad = kernels.fk_jacobian_batch_into(flat, _base(T_world_base), index, point, model.joint_table, poses, jac)
+    if bad >= 0:
+        raise _non_finite(bad, batch)
+    pose = poses[:, index] if T_link_frame is None else poses[:, index] @ T_link_frame
+    if frame == "local":
         R_t = np.swapaxes(pose[:, :3, :3], -1, -2)
         jac = np.concatenate([R_t @ jac[:, :3], R_t @ jac[:, 3:]], axis=1)
     return pose.reshape(batch + (4, 4)), jac.reshape(batch + (6, model.dof))

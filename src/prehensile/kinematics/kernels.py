@@ -1,7 +1,9 @@
-"""Compiled (numba) forward kinematics and Jacobian kernels on the flat model arrays.
+"""Compiled (numba) forward kinematics and Jacobian kernels.
 
-Poses are written in place into preallocated float64 arrays; the public functions in
-:mod:`prehensile.kinematics.forward` wrap them with batching and validation.
+They read the model's packed ``joint_table`` (L, 20) (see
+:attr:`prehensile.model.RobotModel.joint_table`) and write poses in place into preallocated
+float64 arrays (L, 4, 4). Columns of the table: 0 parent, 1 joint type, 2 q index,
+3 multiplier, 4 offset, 5-7 axis, 8-19 the top three rows of the joint origin.
 """
 
 from __future__ import annotations
@@ -11,125 +13,108 @@ from numba import njit
 
 FIXED, REVOLUTE, PRISMATIC = 0, 1, 2
 
+# fast-math without the "no NaN / no inf" assumptions, so that the finiteness checks survive
+FAST = {"nsz", "arcp", "contract", "afn", "reassoc"}
 
-@njit(cache=True, fastmath=False, inline="always")
-def _local_pose(origin, jtype, axis, value, out):
-    """out (4, 4) = origin @ motion(jtype, axis, value)."""
-    if jtype == FIXED:
-        out[:, :] = origin
-        return
-    if jtype == PRISMATIC:
+
+@njit(cache=True, fastmath=FAST)
+def fk_into(q, T_world_base, table, out):
+    """Poses of all links for one configuration q (dof,) into out (L, 4, 4).
+
+    Returns False (leaving ``out`` partly written) if q holds a NaN or infinity.
+    """
+    for k in range(q.shape[0]):
+        if not np.isfinite(q[k]):
+            return False
+    for i in range(table.shape[0]):
+        parent, jtype, qi = int(table[i, 0]), int(table[i, 1]), int(table[i, 2])
+        o00, o01, o02, o03 = table[i, 8], table[i, 9], table[i, 10], table[i, 11]
+        o10, o11, o12, o13 = table[i, 12], table[i, 13], table[i, 14], table[i, 15]
+        o20, o21, o22, o23 = table[i, 16], table[i, 17], table[i, 18], table[i, 19]
+        if jtype == REVOLUTE:
+            value = table[i, 3] * q[qi] + table[i, 4]
+            x, y, z = table[i, 5], table[i, 6], table[i, 7]
+            c, s = np.cos(value), np.sin(value)
+            t = 1.0 - c
+            m00, m01, m02 = t * x * x + c, t * x * y - s * z, t * x * z + s * y
+            m10, m11, m12 = t * x * y + s * z, t * y * y + c, t * y * z - s * x
+            m20, m21, m22 = t * x * z - s * y, t * y * z + s * x, t * z * z + c
+            o00, o01, o02 = o00 * m00 + o01 * m10 + o02 * m20, o00 * m01 + o01 * m11 + o02 * m21, o00 * m02 + o01 * m12 + o02 * m22
+            o10, o11, o12 = o10 * m00 + o11 * m10 + o12 * m20, o10 * m01 + o11 * m11 + o12 * m21, o10 * m02 + o11 * m12 + o12 * m22
+            o20, o21, o22 = o20 * m00 + o21 * m10 + o22 * m20, o20 * m01 + o21 * m11 + o22 * m21, o20 * m02 + o21 * m12 + o22 * m22
+        elif jtype == PRISMATIC:
+            value = table[i, 3] * q[qi] + table[i, 4]
+            x, y, z = table[i, 5], table[i, 6], table[i, 7]
+            o03 += value * (o00 * x + o01 * y + o02 * z)
+            o13 += value * (o10 * x + o11 * y + o12 * z)
+            o23 += value * (o20 * x + o21 * y + o22 * z)
+        P = T_world_base if parent < 0 else out[parent]
         for r in range(3):
-            out[r, 0] = origin[r, 0]
-            out[r, 1] = origin[r, 1]
-            out[r, 2] = origin[r, 2]
-            out[r, 3] = origin[r, 3] + value * (origin[r, 0] * axis[0] + origin[r, 1] * axis[1] + origin[r, 2] * axis[2])
-        out[3, :] = origin[3, :]
-        return
-    x, y, z = axis[0], axis[1], axis[2]
-    c, s = np.cos(value), np.sin(value)
-    t = 1.0 - c
-    m00 = t * x * x + c
-    m01 = t * x * y - s * z
-    m02 = t * x * z + s * y
-    m10 = t * x * y + s * z
-    m11 = t * y * y + c
-    m12 = t * y * z - s * x
-    m20 = t * x * z - s * y
-    m21 = t * y * z + s * x
-    m22 = t * z * z + c
-    for r in range(3):
-        a0, a1, a2 = origin[r, 0], origin[r, 1], origin[r, 2]
-        out[r, 0] = a0 * m00 + a1 * m10 + a2 * m20
-        out[r, 1] = a0 * m01 + a1 * m11 + a2 * m21
-        out[r, 2] = a0 * m02 + a1 * m12 + a2 * m22
-        out[r, 3] = origin[r, 3]
-    out[3, :] = origin[3, :]
-
-
-@njit(cache=True, inline="always")
-def _compose(A, B, out):
-    """out = A @ B for rigid transforms (last row assumed [0, 0, 0, 1])."""
-    for r in range(3):
-        a0, a1, a2 = A[r, 0], A[r, 1], A[r, 2]
-        out[r, 0] = a0 * B[0, 0] + a1 * B[1, 0] + a2 * B[2, 0]
-        out[r, 1] = a0 * B[0, 1] + a1 * B[1, 1] + a2 * B[2, 1]
-        out[r, 2] = a0 * B[0, 2] + a1 * B[1, 2] + a2 * B[2, 2]
-        out[r, 3] = a0 * B[0, 3] + a1 * B[1, 3] + a2 * B[2, 3] + A[r, 3]
-    out[3, 0] = 0.0
-    out[3, 1] = 0.0
-    out[3, 2] = 0.0
-    out[3, 3] = 1.0
+            b0, b1, b2 = P[r, 0], P[r, 1], P[r, 2]
+            out[i, r, 0] = b0 * o00 + b1 * o10 + b2 * o20
+            out[i, r, 1] = b0 * o01 + b1 * o11 + b2 * o21
+            out[i, r, 2] = b0 * o02 + b1 * o12 + b2 * o22
+            out[i, r, 3] = b0 * o03 + b1 * o13 + b2 * o23 + P[r, 3]
+        out[i, 3, 0] = 0.0
+        out[i, 3, 1] = 0.0
+        out[i, 3, 2] = 0.0
+        out[i, 3, 3] = 1.0
+    return True
 
 
 @njit(cache=True)
-def fk_single(q, T_world_base, parent, jtype, origin, axis, qidx, mult, offset, out):
-    """All link poses for one configuration q (dof,) into out (L, 4, 4)."""
-    local = np.empty((4, 4))
-    for i in range(parent.shape[0]):
-        value = 0.0
-        if qidx[i] >= 0:
-            value = mult[i] * q[qidx[i]] + offset[i]
-        if parent[i] < 0:
-            _local_pose(origin[i], jtype[i], axis[i], value, local)
-            _compose(T_world_base, local, out[i])
-        else:
-            _local_pose(origin[i], jtype[i], axis[i], value, local)
-            _compose(out[parent[i]], local, out[i])
-
-
-@njit(cache=True)
-def fk_batch(q, T_world_base, parent, jtype, origin, axis, qidx, mult, offset, out):
-    """Link poses for q (B, dof) into out (B, L, 4, 4)."""
+def fk_batch_into(q, T_world_base, table, out):
+    """Poses for q (B, dof) into out (B, L, 4, 4); returns the first row index holding a
+    NaN or infinity, or -1."""
     for b in range(q.shape[0]):
-        fk_single(q[b], T_world_base, parent, jtype, origin, axis, qidx, mult, offset, out[b])
+        if not fk_into(q[b], T_world_base, table, out[b]):
+            return b
+    return -1
 
 
-@njit(cache=True)
-def jacobian_single(poses, link, point, local, parent, jtype, axis, qidx, mult, out):
-    """Frame Jacobian (6, dof) of ``point`` (3,) fixed in ``link`` into out (zeroed here).
+@njit(cache=True, fastmath=FAST)
+def jacobian_into(poses, link, point, table, out):
+    """World-axes frame Jacobian (6, dof) of ``point`` (3,), given in ``link``'s frame.
 
-    Rows are (linear, angular) velocity; in world axes (``local`` False) or the link's axes.
+    Rows 0-2: velocity of the point; rows 3-5: angular velocity. ``poses`` (L, 4, 4) from
+    :func:`fk_into`. Mimic joints add their multiplier-scaled column to their leader's.
     """
     out[:, :] = 0.0
     T = poses[link]
-    p = np.empty(3)
-    for r in range(3):
-        p[r] = T[r, 0] * point[0] + T[r, 1] * point[1] + T[r, 2] * point[2] + T[r, 3]
-    w = np.empty(3)
+    px = T[0, 0] * point[0] + T[0, 1] * point[1] + T[0, 2] * point[2] + T[0, 3]
+    py = T[1, 0] * point[0] + T[1, 1] * point[1] + T[1, 2] * point[2] + T[1, 3]
+    pz = T[2, 0] * point[0] + T[2, 1] * point[1] + T[2, 2] * point[2] + T[2, 3]
     j = link
     while j >= 0:
-        if jtype[j] != FIXED:
+        jtype = int(table[j, 1])
+        if jtype != FIXED:
             Tj = poses[j]
-            for r in range(3):
-                w[r] = mult[j] * (Tj[r, 0] * axis[j, 0] + Tj[r, 1] * axis[j, 1] + Tj[r, 2] * axis[j, 2])
-            c = qidx[j]
-            if jtype[j] == REVOLUTE:
-                dx, dy, dz = p[0] - Tj[0, 3], p[1] - Tj[1, 3], p[2] - Tj[2, 3]
-                out[0, c] += w[1] * dz - w[2] * dy
-                out[1, c] += w[2] * dx - w[0] * dz
-                out[2, c] += w[0] * dy - w[1] * dx
-                out[3, c] += w[0]
-                out[4, c] += w[1]
-                out[5, c] += w[2]
+            m, ax, ay, az = table[j, 3], table[j, 5], table[j, 6], table[j, 7]
+            wx = m * (Tj[0, 0] * ax + Tj[0, 1] * ay + Tj[0, 2] * az)
+            wy = m * (Tj[1, 0] * ax + Tj[1, 1] * ay + Tj[1, 2] * az)
+            wz = m * (Tj[2, 0] * ax + Tj[2, 1] * ay + Tj[2, 2] * az)
+            c = int(table[j, 2])
+            if jtype == REVOLUTE:
+                dx, dy, dz = px - Tj[0, 3], py - Tj[1, 3], pz - Tj[2, 3]
+                out[0, c] += wy * dz - wz * dy
+                out[1, c] += wz * dx - wx * dz
+                out[2, c] += wx * dy - wy * dx
+                out[3, c] += wx
+                out[4, c] += wy
+                out[5, c] += wz
             else:
-                out[0, c] += w[0]
-                out[1, c] += w[1]
-                out[2, c] += w[2]
-        j = parent[j]
-    if local:
-        tmp = np.empty(3)
-        for c in range(out.shape[1]):
-            for block in range(2):
-                for r in range(3):
-                    tmp[r] = T[0, r] * out[3 * block, c] + T[1, r] * out[3 * block + 1, c] + T[2, r] * out[3 * block + 2, c]
-                for r in range(3):
-                    out[3 * block + r, c] = tmp[r]
+                out[0, c] += wx
+                out[1, c] += wy
+                out[2, c] += wz
+        j = int(table[j, 0])
 
 
 @njit(cache=True)
-def fk_jacobian_batch(q, T_world_base, link, point, local, parent, jtype, origin, axis, qidx, mult, offset, poses, out):
-    """Poses (B, L, 4, 4) and Jacobians (B, 6, dof) of ``point`` in ``link`` for q (B, dof)."""
+def fk_jacobian_batch_into(q, T_world_base, link, point, table, poses, jac):
+    """Poses (B, L, 4, 4) and world-axes Jacobians (B, 6, dof) for q (B, dof); returns the
+    first row index holding a NaN or infinity, or -1."""
     for b in range(q.shape[0]):
-        fk_single(q[b], T_world_base, parent, jtype, origin, axis, qidx, mult, offset, poses[b])
-        jacobian_single(poses[b], link, point, local, parent, jtype, axis, qidx, mult, out[b])
+        if not fk_into(q[b], T_world_base, table, poses[b]):
+            return b
+        jacobian_into(poses[b], link, point, table, jac[b])
+    return -1

@@ -10,6 +10,7 @@ single forward sweep computes all poses.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 from types import MappingProxyType
 from typing import Mapping
 
@@ -105,6 +106,21 @@ class RobotModel:
         object.__setattr__(self, "end_effectors", MappingProxyType(dict(self.end_effectors)))
         object.__setattr__(self, "_link_index", {n: i for i, n in enumerate(self.link_names)})
         object.__setattr__(self, "_joint_index", {n: i for i, n in enumerate(self.joint_names)})
+
+    @cached_property
+    def joint_table(self) -> np.ndarray:
+        """The per-link joint arrays packed row-wise for the compiled kernels, shape (L, 20):
+        parent, type, q index, multiplier, offset, axis (3), joint origin rows 0-2 (12)."""
+        table = np.empty((self.n_links, 20))
+        table[:, 0] = self.link_parent
+        table[:, 1] = self.joint_type
+        table[:, 2] = self.joint_q_index
+        table[:, 3] = self.joint_multiplier
+        table[:, 4] = self.joint_offset
+        table[:, 5:8] = self.joint_axis
+        table[:, 8:20] = self.joint_origin[:, :3, :].reshape(-1, 12)
+        table.setflags(write=False)
+        return table
 
     @property
     def dof(self) -> int:
