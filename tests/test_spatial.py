@@ -1,0 +1,58 @@
+"""Rotations and transforms against scipy and algebraic identities."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from prehensile.errors import PrehensileError
+from prehensile.spatial import (
+    axis_angle_to_matrix, check_pose, invert, make_pose, matrix_to_rpy, quaternion_to_matrix,
+    rotation_error, rpy_to_matrix,
+)
+
+
+def test_rpy_matches_scipy_fixed_axes_and_round_trips():
+    rpy = np.random.default_rng(0).uniform([-np.pi, -1.5, -np.pi], [np.pi, 1.5, np.pi], (500, 3))
+    R = rpy_to_matrix(rpy)
+    assert np.allclose(R, Rotation.from_euler("xyz", rpy).as_matrix(), atol=1e-12)
+    assert np.allclose(matrix_to_rpy(R), rpy, atol=1e-9)
+
+
+def test_quaternion_and_axis_angle_match_scipy():
+    rng = np.random.default_rng(1)
+    quat = rng.normal(size=(200, 4))
+    expected = Rotation.from_quat(quat[:, [1, 2, 3, 0]]).as_matrix()
+    assert np.allclose(quaternion_to_matrix(quat), expected, atol=1e-12)
+    rotvec = rng.normal(size=(200, 3))
+    angle = np.linalg.norm(rotvec, axis=-1)
+    assert np.allclose(axis_angle_to_matrix(rotvec / angle[:, None], angle), Rotation.from_rotvec(rotvec).as_matrix())
+    with pytest.raises(PrehensileError, match="non-zero"):
+        quaternion_to_matrix([0, 0, 0, 0])
+
+
+def test_rotation_error_is_the_relative_rotation_vector_up_to_pi():
+    rng = np.random.default_rng(2)
+    R_current = Rotation.random(300, random_state=3).as_matrix()
+    rotvec = rng.normal(size=(300, 3))
+    rotvec *= (rng.uniform(0, np.pi, 300) / np.linalg.norm(rotvec, axis=-1))[:, None]
+    rotvec[0] = [np.pi, 0, 0]
+    rotvec[1] = [0, 0, 0]
+    R_target = Rotation.from_rotvec(rotvec).as_matrix() @ R_current
+    error = rotation_error(R_target, R_current)
+    assert np.allclose(Rotation.from_rotvec(error).as_matrix() @ R_current, R_target, atol=1e-9)
+
+
+def test_invert_and_check_pose():
+    T = make_pose(Rotation.random(10, random_state=4).as_matrix(), np.arange(30.0).reshape(10, 3))
+    assert np.allclose(T @ invert(T), np.eye(4))
+    assert check_pose(T) is not None
+    bad = T[0].copy()
+    bad[0, 0] = np.nan
+    with pytest.raises(PrehensileError, match="NaN"):
+        check_pose(bad, "target")
+    bad = T[0].copy()
+    bad[:3, :3] *= 2
+    with pytest.raises(PrehensileError, match="target: upper-left 3x3 block is not a rotation"):
+        check_pose(bad, "target")

@@ -1,0 +1,125 @@
+"""URDF and SRDF loading: structure, joint types, and clear errors on bad input."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from conftest import MBM, require_shared
+from prehensile.errors import ModelError
+from prehensile.kinematics import forward_kinematics
+from prehensile.model import Box, Capsule, Cylinder, Mesh, Sphere, load_urdf
+
+ARM = """<robot name="arm">
+  <link name="base"><collision><geometry><box size="0.2 0.2 0.1"/></geometry></collision></link>
+  <link name="upper"><collision><origin xyz="0 0 0.15"/><geometry><cylinder radius="0.04" length="0.3"/></geometry></collision></link>
+  <link name="lower"><collision><geometry><capsule radius="0.03" length="0.2"/></geometry></collision></link>
+  <link name="slider"><visual><geometry><sphere radius="0.02"/></geometry></visual></link>
+  <link name="finger_a"/><link name="finger_b"/><link name="wheel"/>
+  <joint name="shoulder" type="revolute"><parent link="base"/><child link="upper"/>
+    <origin xyz="0 0 0.1" rpy="0 0 0.5"/><axis xyz="0 1 0"/><limit lower="-1.5" upper="1.5" velocity="2"/></joint>
+  <joint name="elbow" type="revolute"><parent link="upper"/><child link="lower"/>
+    <origin xyz="0 0 0.3"/><axis xyz="0 1 0"/><limit lower="-2" upper="2" velocity="3"/></joint>
+  <joint name="slide" type="prismatic"><parent link="lower"/><child link="slider"/>
+    <origin xyz="0 0 0.2"/><axis xyz="0 0 1"/><limit lower="0" upper="0.1" velocity="0.5"/></joint>
+  <joint name="finger_a" type="prismatic"><parent link="slider"/><child link="finger_a"/>
+    <axis xyz="0 1 0"/><limit lower="0" upper="0.04"/></joint>
+  <joint name="finger_b" type="prismatic"><parent link="slider"/><child link="finger_b"/>
+    <axis xyz="0 -1 0"/><limit lower="0" upper="0.04"/><mimic joint="finger_a" multiplier="1" offset="0"/></joint>
+  <joint name="wheel" type="continuous"><parent link="base"/><child link="wheel"/><axis xyz="1 0 0"/></joint>
+</robot>"""
+
+
+def write(tmp_path, text, name="robot.urdf"):
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+def test_structure_joint_types_and_geometry(tmp_path):
+    model = load_urdf(write(tmp_path, ARM))
+    assert model.joint_names == ("shoulder", "elbow", "slide", "finger_a", "wheel")
+    assert model.link_names[0] == "base" and set(model.link_names) == {
+        "base", "upper", "lower", "slider", "finger_a", "finger_b", "wheel"}
+    assert model.continuous.tolist() == [False, False, False, False, True]
+    assert model.velocity_limit[1] == 3.0
+    shapes = [type(g.shape) for geoms in model.collisions for g in geoms]
+    assert shapes == [Box, Cylinder, Capsule]
+    assert isinstance(model.visuals[model.link_index("slider")][0].shape, Sphere)
+
+
+def test_mimic_finger_moves_opposite(tmp_path):
+    model = load_urdf(write(tmp_path, ARM))
+    q = model.neutral_configuration()
+    q[model.joint_index("finger_a")] = 0.03
+    poses = forward_kinematics(model, q)
+    a, b, s = (poses[model.link_index(n), :3, 3] for n in ("finger_a", "finger_b", "slider"))
+    assert np.allclose(a - s, -(b - s)) and np.isclose(np.linalg.norm(a - s), 0.03)
+
+
+def test_planar_joint_expands_to_x_y_theta(tmp_path):
+    text = """<robot name="base"><link name="world"/><link name="body"/>
+      <joint name="base" type="planar"><parent link="world"/><child link="body"/><axis xyz="0 0 1"/></joint></robot>"""
+    model = load_urdf(write(tmp_path, text))
+    assert model.joint_names == ("base_x", "base_y", "base_theta")
+    pose = forward_kinematics(model, np.array([1.0, 2.0, np.pi / 2]))[model.link_index("body")]
+    assert np.allclose(pose[:3, 3], [1, 2, 0]) and np.allclose(pose[:3, 0], [0, 1, 0])
+
+
+def test_chain_from_srdf_and_disabled_pairs(tmp_path):
+    write(tmp_path, ARM)
+    srdf = write(tmp_path, """<robot name="arm">
+      <group name="arm"><chain base_link="base" tip_link="slider"/></group>
+      <group name="gripper"><joint name="finger_a"/><joint name="finger_b"/></group>
+      <group_state name="open" group="gripper"><joint name="finger_a" value="0.04"/></group_state>
+      <end_effector name="hand" parent_link="slider" group="gripper" parent_group="arm" tcp_link="finger_a"/>
+      <disable_collisions link1="base" link2="upper" reason="Adjacent"/></robot>""", "robot.srdf")
+    model = load_urdf(tmp_path / "robot.urdf", srdf)
+    assert model.chain("arm").joint_names == ("shoulder", "elbow", "slide")
+    assert model.chain_q_indices("arm").tolist() == [0, 1, 2]
+    hand = model.end_effector("hand")
+    assert hand.finger_joints == ("finger_a",) and hand.tcp_link == "finger_a" and hand.chain == "arm"
+    assert hand.preshapes["open"] == {"finger_a": 0.04}
+    assert frozenset(("base", "upper")) in model.disabled_collision_pairs
+
+
+@pytest.mark.parametrize(
+    "edit, message",
+    [
+        (lambda t: t.replace('type="continuous"', 'type="screw"'), "unknown type 'screw'; valid types: revolute"),
+        (lambda t: t.replace('<parent link="upper"/>', '<parent link="nowhere"/>'), "unknown parent link 'nowhere'"),
+        (lambda t: t.replace('<child link="wheel"/>', '<child link="upper"/>'), "link 'upper' has two parent joints"),
+        (lambda t: t.replace("</robot>", '<joint name="loop" type="fixed"><parent link="lower"/><child link="base"/></joint></robot>'), "cycle"),
+        (lambda t: t.replace('type="continuous"', 'type="floating"'), "floating joints are not supported"),
+        (lambda t: t.replace('<limit lower="-2" upper="2" velocity="3"/>', ""), "joint 'elbow': a revolute joint needs a <limit>"),
+        (lambda t: t.replace('lower="-2" upper="2"', 'lower="2" upper="-2"'), "lower limit 2.0 above upper limit -2.0"),
+        (lambda t: t.replace('xyz="0 1 0"/><limit lower="-2"', 'xyz="0 0 0"/><limit lower="-2"'), "zero or invalid axis"),
+        (lambda t: t.replace('radius="0.04" length="0.3"', 'radius="-0.04" length="0.3"'), "link 'upper' <collision> #0 <cylinder>: must be positive"),
+        (lambda t: t.replace('<box size="0.2 0.2 0.1"/>', '<mesh filename="meshes/missing.stl"/>'), "link 'base' <collision> #0 <mesh>: file 'meshes/missing.stl' not found"),
+        (lambda t: t.replace('mimic joint="finger_a"', 'mimic joint="ghost"'), "mimics 'ghost'"),
+        (lambda t: t.replace("</robot>", "<joint"), "malformed XML"),
+        (lambda t: t.replace('<origin xyz="0 0 0.3"/>', '<origin xyz="0 0 nan"/>'), "joint 'elbow' <origin xyz>"),
+    ],
+)
+def test_malformed_urdf_names_file_element_and_problem(tmp_path, edit, message):
+    path = write(tmp_path, edit(ARM))
+    with pytest.raises(ModelError) as error:
+        load_urdf(path)
+    assert str(path) in str(error.value) and message in str(error.value)
+
+
+def test_missing_file_and_bad_srdf(tmp_path):
+    with pytest.raises(ModelError, match="file not found"):
+        load_urdf(tmp_path / "absent.urdf")
+    write(tmp_path, ARM)
+    srdf = write(tmp_path, '<robot><disable_collisions link1="base" link2="ghost"/></robot>', "bad.srdf")
+    with pytest.raises(ModelError, match="bad.srdf: disable_collisions names unknown link 'ghost'"):
+        load_urdf(tmp_path / "robot.urdf", srdf)
+
+
+def test_mbm_panda_meshes_resolve():
+    panda = require_shared(MBM / "panda")
+    model = load_urdf(panda / "panda.urdf", panda / "panda.srdf")
+    meshes = [g.shape for geoms in model.collisions for g in geoms]
+    assert meshes and all(isinstance(m, Mesh) and m.path.is_file() for m in meshes)
+    assert model.dof == 7 and model.chain("panda_arm").tip_link == "panda_link8"
