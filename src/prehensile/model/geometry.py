@@ -45,18 +45,34 @@ class Capsule:
 class Mesh:
     """Triangle mesh read from ``path`` and scaled per axis by ``scale``.
 
-    The file is read on first use of :attr:`trimesh`.
+    The file is read on first use of :attr:`trimesh`. An in-memory mesh (e.g. one compiled by
+    MuJoCo) has ``path=None`` and carries ``vertices`` (V, 3) in m and ``faces`` (F, 3) vertex
+    indices instead; build it with :meth:`from_arrays`.
     """
 
-    path: Path
+    path: Path | None
     scale: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    vertices: np.ndarray | None = None
+    faces: np.ndarray | None = None
+
+    @classmethod
+    def from_arrays(cls, vertices: np.ndarray, faces: np.ndarray) -> "Mesh":
+        """An in-memory mesh from vertices (V, 3) in m and triangle indices (F, 3)."""
+        vertices = np.array(vertices, dtype=float).reshape(-1, 3)
+        faces = np.array(faces, dtype=np.int64).reshape(-1, 3)
+        vertices.setflags(write=False)
+        faces.setflags(write=False)
+        return cls(None, vertices=vertices, faces=faces)
 
     @cached_property
     def trimesh(self):
         """The mesh as a ``trimesh.Trimesh`` (scenes are merged into one mesh)."""
         import trimesh
 
-        loaded = trimesh.load(self.path, force="mesh", process=False)
+        if self.vertices is not None:
+            loaded = trimesh.Trimesh(np.array(self.vertices), np.array(self.faces), process=False)
+        else:
+            loaded = trimesh.load(self.path, force="mesh", process=False)
         mesh = loaded.copy()
         mesh.apply_scale(np.asarray(self.scale, dtype=float))
         return mesh
