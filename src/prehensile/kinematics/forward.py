@@ -84,12 +84,13 @@ def frame_jacobian(
     flat, batch = _flat(model, q)
     index = model.link_index(link)
     point = np.zeros(3) if T_link_frame is None else np.ascontiguousarray(T_link_frame[:3, 3], dtype=float)
-    poses = np.empty((flat.shape[0], model.n_links, 4, 4))
+    pose = np.empty((flat.shape[0], 4, 4))
     jac = np.empty((flat.shape[0], 6, model.dof))
-    bad = kernels.fk_jacobian_batch_into(flat, _base(T_world_base), index, point, model.joint_table, poses, jac)
+    bad = kernels.fk_jacobian_batch_into(flat, _base(T_world_base), index, point, model.joint_table, pose, jac)
     if bad >= 0:
         raise _non_finite(bad, batch)
-    pose = poses[:, index] if T_link_frame is None else poses[:, index] @ T_link_frame
+    if T_link_frame is not None:
+        pose = pose @ T_link_frame
     if frame == "local":
         R_t = np.swapaxes(pose[:, :3, :3], -1, -2)
         jac = np.concatenate([R_t @ jac[:, :3], R_t @ jac[:, 3:]], axis=1)

@@ -110,11 +110,13 @@ def jacobian_into(poses, link, point, table, out):
 
 
 @njit(cache=True)
-def fk_jacobian_batch_into(q, T_world_base, link, point, table, poses, jac):
-    """Poses (B, L, 4, 4) and world-axes Jacobians (B, 6, dof) for q (B, dof); returns the
-    first row index holding a NaN or infinity, or -1."""
+def fk_jacobian_batch_into(q, T_world_base, link, point, table, pose, jac):
+    """Pose (B, 4, 4) of ``link`` and world-axes Jacobians (B, 6, dof) of ``point`` for
+    q (B, dof); returns the first row index holding a NaN or infinity, or -1."""
+    poses = np.empty((table.shape[0], 4, 4))
     for b in range(q.shape[0]):
-        if not fk_into(q[b], T_world_base, table, poses[b]):
+        if not fk_into(q[b], T_world_base, table, poses):
             return b
-        jacobian_into(poses[b], link, point, table, jac[b])
+        jacobian_into(poses, link, point, table, jac[b])
+        pose[b] = poses[link]
     return -1
