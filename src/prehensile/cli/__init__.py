@@ -1,0 +1,1 @@
+"""The `prehensile` command line (typer); see :mod:`prehensile.cli.main`."""

@@ -1,5 +1,17 @@
 """Scenes: robots, obstacles and objects; YAML scene files; MoveIt PlanningScene import."""
 
+from prehensile.scene.check import SceneCheck, check_scene
+from prehensile.scene.files import bundled_scene_path, bundled_scenes, load_scene, save_scene
+from prehensile.scene.moveit import (
+    MBMProblem,
+    MotionPlanRequest,
+    iter_mbm_problems,
+    load_motion_plan_request,
+    load_moveit_scene,
+)
 from prehensile.scene.scene import Body, PlacedRobot, Scene
 
-__all__ = ["Body", "PlacedRobot", "Scene"]
+__all__ = [
+    "Body", "MBMProblem", "SceneCheck", "bundled_scene_path", "bundled_scenes", "check_scene", "MotionPlanRequest", "PlacedRobot", "Scene", "iter_mbm_problems",
+    "load_motion_plan_request", "load_moveit_scene", "load_scene", "save_scene",
+]

@@ -1,0 +1,194 @@
+"""The ``prehensile`` command: a thin layer over the library.
+
+Commands::
+
+    prehensile robot info NAME|PATH [--json]
+    prehensile fk NAME|PATH [--q v1 v2 ...] [--link L] [--json]
+    prehensile check SCENE [--exact | --spheres] [--json]
+    prehensile demo [--out DIR]
+
+Bad input (any :class:`~prehensile.errors.PrehensileError`) prints one red line and exits
+with code 2; ``check`` exits 0 when the scene is collision-free and 1 when something collides.
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+import sys
+from pathlib import Path
+from typing import List, Optional
+
+import typer
+from rich.console import Console
+from rich.table import Table
+
+from prehensile.cli import robot as robot_cmd
+from prehensile.errors import PrehensileError
+
+app = typer.Typer(name="prehensile", help="Robots that reach, grasp and place.", no_args_is_help=True,
+                  add_completion=False, pretty_exceptions_enable=False)
+robot_app = typer.Typer(help="Inspect robot models.", no_args_is_help=True)
+app.add_typer(robot_app, name="robot")
+console = Console(highlight=False, width=None if sys.stdout.isatty() else 120)
+err_console = Console(stderr=True, highlight=False)
+
+EXIT_FREE, EXIT_COLLIDING, EXIT_BAD_INPUT = 0, 1, 2
+
+
+def handles_errors(command):
+    """Turn a PrehensileError into one red line on stderr and exit code 2."""
+
+    @functools.wraps(command)
+    def wrapper(*args, **kwargs):
+        try:
+            return command(*args, **kwargs)
+        except PrehensileError as err:
+            err_console.print(f"[bold red]error:[/] [red]{err}[/]", soft_wrap=True, markup=True)
+            raise typer.Exit(EXIT_BAD_INPUT) from None
+
+    return wrapper
+
+
+def _echo_json(data) -> None:
+    typer.echo(json.dumps(data, indent=2))
+
+
+def _fmt(value: float | None, digits: int = 4) -> str:
+    return "inf" if value is None else f"{value:.{digits}f}"
+
+
+@robot_app.command("info")
+@handles_errors
+def robot_info(
+    robot: str = typer.Argument(..., help="Bundled robot name (see `prehensile robot list`) or model file path."),
+    as_json: bool = typer.Option(False, "--json", help="Print JSON instead of tables."),
+) -> None:
+    """Degrees of freedom, joints and limits, chains, end effectors and preshapes."""
+    info = robot_cmd.robot_info(robot_cmd.load_robot(robot))
+    if as_json:
+        _echo_json(info)
+        return
+    console.print(f"[bold]{info['name']}[/]  ({info['source']})")
+    console.print(f"dof: {info['dof']}   links: {info['n_links']}   root: {info['root_link']}")
+    joints = Table("#", "joint", "type", "lower", "upper", "lower (deg)", "upper (deg)", "velocity", title="joints")
+    for j in info["joints"]:
+        deg = (_fmt(j.get("lower_deg"), 1), _fmt(j.get("upper_deg"), 1)) if "lower_deg" in j else ("-", "-")
+        unit = "m" if j["type"] == "prismatic" else "rad"
+        joints.add_row(str(j["index"]), j["name"], j["type"], f"{_fmt(j['lower'])} {unit}", f"{_fmt(j['upper'])} {unit}",
+                       *deg, _fmt(j["velocity"], 2))
+    console.print(joints)
+    if info["chains"]:
+        chains = Table("chain", "base", "tip", "joints", title="chains")
+        for c in info["chains"]:
+            chains.add_row(c["name"], c["base_link"], c["tip_link"], ", ".join(c["joints"]))
+        console.print(chains)
+    if info["end_effectors"]:
+        eefs = Table("end effector", "tcp", "gcp", "chain", "fingers", "preshapes", title="end effectors")
+        for e in info["end_effectors"]:
+            eefs.add_row(e["name"], e["tcp_link"], e["gcp_link"], e["chain"], ", ".join(e["finger_joints"]),
+                         ", ".join(e["preshapes"]))
+        console.print(eefs)
+
+
+@robot_app.command("list")
+@handles_errors
+def robot_list() -> None:
+    """The bundled robots."""
+    from prehensile import robots
+
+    for name in robots.available():
+        typer.echo(name)
+
+
+@app.command("fk", context_settings={"allow_extra_args": True, "ignore_unknown_options": True})
+@handles_errors
+def fk(
+    ctx: typer.Context,
+    robot: str = typer.Argument(..., help="Bundled robot name or model file path."),
+    q: Optional[List[str]] = typer.Option(None, "--q", help="Joint values (rad or m): --q v1 v2 ... (default neutral)."),
+    link: Optional[str] = typer.Option(None, "--link", help="Only this link (default: all links)."),
+    as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table."),
+) -> None:
+    """Forward kinematics: world poses of the links with the base at the origin."""
+    values = list(q or []) + list(ctx.args)
+    if ctx.args and not q:
+        raise PrehensileError(f"unexpected arguments {' '.join(ctx.args)}; give joint values after --q")
+    model = robot_cmd.load_robot(robot)
+    result = robot_cmd.link_poses(model, robot_cmd.parse_q(model, values), link)
+    if as_json:
+        _echo_json(result)
+        return
+    table = Table("link", "x (m)", "y (m)", "z (m)", "roll (rad)", "pitch (rad)", "yaw (rad)",
+                  title=f"{model.name} at q = [{', '.join(f'{v:.4g}' for v in result['q'])}]")
+    for name, pose in result["links"].items():
+        table.add_row(name, *(f"{v:.4f}" for v in pose["position"]), *(f"{v:.4f}" for v in pose["rpy"]))
+    console.print(table)
+
+
+@app.command("check")
+@handles_errors
+def check(
+    scene: Path = typer.Argument(..., help="YAML scene file."),
+    exact: bool = typer.Option(True, "--exact/--spheres", help="Exact meshes (coal) or the sphere models."),
+    as_json: bool = typer.Option(False, "--json", help="Print JSON instead of tables."),
+) -> None:
+    """Check every robot of a scene at its configuration: self-collisions and robot vs world.
+
+    Exit code 0 when collision-free, 1 when something collides, 2 on bad input.
+    """
+    from prehensile.scene import check_scene, load_scene
+
+    loaded = load_scene(scene)
+    result = check_scene(loaded, "exact" if exact else "spheres")
+    if as_json:
+        _echo_json({"scene": str(scene), **result.to_dict()})
+    else:
+        print_check(loaded.source, result)
+    raise typer.Exit(EXIT_FREE if result.free else EXIT_COLLIDING)
+
+
+def print_check(source: str, result) -> None:
+    """Rich tables of a :class:`~prehensile.scene.check.SceneCheck`."""
+    table = Table("robot", "link", "touches", "kind", "depth (mm)", title=f"{source} ({result.method})")
+    for r in result.robots:
+        if r.free:
+            table.add_row(r.robot, "-", "[green]free[/]", "", "")
+        elif not r.contacts:
+            table.add_row(r.robot, "[red]?[/]", "[red]colliding[/] (sphere model names no pairs; use --exact)", "", "")
+        for c in r.contacts:
+            table.add_row(r.robot, f"[red]{c.link}[/]", c.other, c.kind, f"{1000 * c.depth:.1f}")
+    console.print(table)
+    status = "[green]collision-free[/]" if result.free else "[bold red]colliding[/]"
+    console.print(f"scene is {status}")
+
+
+@app.command("demo")
+@handles_errors
+def demo(
+    out: Path = typer.Option(Path("prehensile-demo"), "--out", help="Folder for demo.png and demo.json."),
+) -> None:
+    """Load every bundled robot and the bundled scene, check it and draw it."""
+    from prehensile import robots
+    from prehensile.scene import bundled_scene_path, check_scene, load_scene
+    from prehensile.viz import render_scene
+
+    models = []
+    for name in robots.available():
+        model = robots.load(name)
+        models.append({"name": name, "dof": model.dof, "n_links": model.n_links})
+        console.print(f"loaded [bold]{name}[/]: {model.dof} dof, {model.n_links} links")
+    path = bundled_scene_path("demo")
+    scene = load_scene(path)
+    result = check_scene(scene, "exact")
+    print_check(path.name, result)
+    out.mkdir(parents=True, exist_ok=True)
+    png = render_scene(scene, out / "demo.png", result.colliding_links, result.colliding_bodies(),
+                       title="prehensile demo: colliding links in red")
+    report = {"scene": str(path), "bundled_robots": models, **result.to_dict()}
+    (out / "demo.json").write_text(json.dumps(report, indent=2), encoding="utf-8")
+    console.print(f"wrote {png} and {out / 'demo.json'}")
+
+
+if __name__ == "__main__":  # pragma: no cover
+    app()

@@ -1,0 +1,145 @@
+"""Collision check of a whole scene: every robot at its configuration.
+
+Each robot is checked for self-collisions (minus the model's disabled pairs) and against the
+world: the scene's obstacles and objects plus the collision shapes of every *other* robot,
+placed by forward kinematics. Another robot's shapes appear as obstacles called
+``"<robot>/<link>"``, so a robot-robot contact is reported by both robots.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from prehensile.collision.world import Obstacle
+from prehensile.errors import SceneError
+from prehensile.scene.scene import PlacedRobot, Scene
+
+METHODS = ("exact", "spheres")
+
+
+@dataclass(frozen=True)
+class Contact:
+    """A colliding pair: ``link`` of ``robot`` touches ``other`` (a link of the same robot, a
+    body of the scene or ``"<robot>/<link>"``); ``depth`` is the penetration depth in m (0 where
+    the checker does not measure it)."""
+
+    robot: str
+    link: str
+    other: str
+    depth: float
+    kind: str  # "self" or "world"
+
+
+@dataclass(frozen=True)
+class RobotCheck:
+    """The result for one robot: ``free`` and the contacts (empty when free)."""
+
+    robot: str
+    free: bool
+    contacts: tuple[Contact, ...]
+
+    @property
+    def colliding_links(self) -> tuple[str, ...]:
+        """Links of this robot that touch anything, sorted, each once."""
+        links = {c.link for c in self.contacts}
+        links |= {c.other for c in self.contacts if c.kind == "self"}
+        return tuple(sorted(links))
+
+
+@dataclass(frozen=True)
+class SceneCheck:
+    """The result for a scene: one :class:`RobotCheck` per robot, in scene order."""
+
+    method: str
+    robots: tuple[RobotCheck, ...]
+
+    @property
+    def free(self) -> bool:
+        return all(r.free for r in self.robots)
+
+    @property
+    def colliding_links(self) -> dict[str, tuple[str, ...]]:
+        """Robot name -> its colliding links (robots without contacts are left out)."""
+        return {r.robot: r.colliding_links for r in self.robots if r.colliding_links}
+
+    def colliding_bodies(self) -> tuple[str, ...]:
+        """Scene bodies touched by any robot, sorted."""
+        return tuple(sorted({c.other for r in self.robots for c in r.contacts if c.kind == "world" and "/" not in c.other}))
+
+    def to_dict(self) -> dict:
+        """A JSON-ready summary: method, free, and per robot its contacts and colliding links."""
+        return {
+            "method": self.method,
+            "free": self.free,
+            "robots": [
+                {
+                    "name": r.robot,
+                    "free": r.free,
+                    "colliding_links": list(r.colliding_links),
+                    "contacts": [
+                        {"link": c.link, "other": c.other, "kind": c.kind, "depth": c.depth} for c in r.contacts
+                    ],
+                }
+                for r in self.robots
+            ],
+            "colliding_bodies": list(self.colliding_bodies()),
+        }
+
+
+def robot_obstacles(robot: PlacedRobot) -> list[Obstacle]:
+    """The collision shapes of ``robot`` at its configuration as obstacles ``"<robot>/<link>"``."""
+    return [Obstacle(f"{robot.name}/{link}", g.shape, T) for link, g, T in robot.world_geometries("collision")]
+
+
+def check_scene(scene: Scene, method: str = "exact") -> SceneCheck:
+    """Check every robot of ``scene`` at its configuration.
+
+    Args:
+        scene: the scene; robots use :attr:`PlacedRobot.configuration`.
+        method: "exact" (meshes and primitives with coal, reports each pair and its depth) or
+            "spheres" (the robot's sphere model against the world shapes; conservative, and
+            reports only free / colliding per robot, no pairs).
+
+    Returns:
+        A :class:`SceneCheck`; ``free`` is True when no robot touches anything.
+
+    Raises:
+        SceneError: unknown ``method``.
+    """
+    if method not in METHODS:
+        raise SceneError(f"unknown collision method '{method}'; valid: {', '.join(METHODS)}")
+    world = scene.collision_obstacles()
+    others = {robot.name: robot_obstacles(robot) for robot in scene.robots}
+    results = []
+    for robot in scene.robots:
+        obstacles = world + [o for name, obs in others.items() if name != robot.name for o in obs]
+        results.append(_check_robot(robot, obstacles, method))
+    return SceneCheck(method, tuple(results))
+
+
+def _check_robot(robot: PlacedRobot, obstacles: list[Obstacle], method: str) -> RobotCheck:
+    q = robot.configuration
+    links = set(robot.model.link_names)
+    if method == "exact":
+        from prehensile.collision import ExactChecker
+
+        checker = ExactChecker(robot.model, obstacles, T_world_base=robot.T_world_base)
+        contacts = _merge(robot.name, checker.collisions(q), links)
+        return RobotCheck(robot.name, not contacts, contacts)
+    from prehensile.collision import SphereChecker
+
+    checker = SphereChecker(robot.model, obstacles, T_world_base=robot.T_world_base)
+    # The sphere checker answers free / colliding only; it does not name the pairs.
+    return RobotCheck(robot.name, bool(checker.is_free(q)), ())
+
+
+def _merge(robot: str, pairs, links: set[str]) -> tuple[Contact, ...]:
+    """One contact per (link, other) pair with the deepest penetration of its shape pairs."""
+    deepest: dict[tuple[str, str], float] = {}
+    for link, other, depth in pairs:
+        key = (str(link), str(other))
+        deepest[key] = max(deepest.get(key, 0.0), float(depth))
+    return tuple(
+        Contact(robot, link, other, depth, "self" if other in links else "world")
+        for (link, other), depth in deepest.items()
+    )

@@ -1,0 +1,380 @@
+"""Import MoveIt PlanningScene and MotionPlanRequest YAML files (e.g. MotionBenchMaker).
+
+MoveIt conventions and how they are mapped:
+
+- Quaternions in MoveIt messages are ``(x, y, z, w)`` (lists or ``{x, y, z, w}`` mappings);
+  prehensile converts them to its own ``(w, x, y, z)``. Positions are in m.
+- A collision object may carry an object ``pose`` (MoveIt >= 2 / Noetic-late) plus a pose per
+  primitive or mesh; the shape's world pose is ``T_world_object @ T_object_shape``. Without an
+  object pose the per-shape poses are world poses (older MoveIt).
+- ``header.frame_id`` must be empty, ``world``, or a frame of ``fixed_frame_transforms``; other
+  frames (robot links) are rejected with a :class:`~prehensile.errors.SceneError`.
+- Primitive dimensions follow ``shape_msgs/SolidPrimitive``: box ``[x, y, z]`` (full sides),
+  sphere ``[radius]``, cylinder ``[height, radius]`` (note the order: height first), cone
+  ``[height, radius]``. A cone becomes a **conservative cylinder** of the same height and base
+  radius (it encloses the cone), logged at warning level. Prisms and planes are rejected.
+- Meshes (``vertices`` / ``triangles``) become in-memory :class:`~prehensile.model.geometry.Mesh`
+  shapes (``Mesh.from_arrays``, no file).
+- ``robot_state`` (joint values and the ``virtual_joint`` base transform) is applied only when
+  a robot model is passed: MoveIt scenes name the robot but prehensile does not guess which
+  model file matches it.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import re
+import tarfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from types import MappingProxyType
+from typing import Any, Iterator, Mapping
+
+import numpy as np
+import yaml
+
+from prehensile.errors import SceneError
+from prehensile.model.geometry import Box, Cylinder, Geometry, Mesh, Sphere
+from prehensile.model.robot_model import RobotModel
+from prehensile.scene.scene import Body, PlacedRobot, Scene
+from prehensile.spatial import make_pose, quaternion_to_matrix
+
+log = logging.getLogger(__name__)
+
+_PRIMITIVE_IDS = {1: "box", 2: "sphere", 3: "cylinder", 4: "cone", 5: "prism"}
+_WORLD_FRAMES = ("", "world", "/world")
+_PROBLEM_FILE = re.compile(r"^(scene|request)(\d+)\.ya?ml$")
+_Loader = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+
+
+@dataclass(frozen=True)
+class MotionPlanRequest:
+    """A MoveIt MotionPlanRequest reduced to joint-space start and goal.
+
+    Unpacks as ``group, start, goal = request``.
+
+    Attributes:
+        group: planning group (e.g. "panda_arm").
+        start: joint name -> value (rad or m) of ``start_state.joint_state``.
+        goal: joint name -> value of ``goal_constraints[0].joint_constraints``.
+        planner_id: MoveIt planner name ("" if absent).
+        allowed_planning_time: s (0 if absent).
+        num_planning_attempts: attempts requested (1 if absent).
+        source: the file it came from.
+    """
+
+    group: str
+    start: Mapping[str, float]
+    goal: Mapping[str, float]
+    planner_id: str = ""
+    allowed_planning_time: float = 0.0
+    num_planning_attempts: int = 1
+    source: str = ""
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "start", MappingProxyType(dict(self.start)))
+        object.__setattr__(self, "goal", MappingProxyType(dict(self.goal)))
+
+    def __iter__(self):
+        return iter((self.group, self.start, self.goal))
+
+    def start_configuration(self, model: RobotModel, strict: bool = False) -> np.ndarray:
+        """q (dof,) with the start joints set and the rest neutral.
+
+        Joints the model does not have (e.g. MBM's finger joints on a model with fixed fingers)
+        are skipped unless ``strict``; a request sharing no joint with the model is an error.
+        """
+        return _configuration(model, self.start, None, f"{self.source}: start_state", strict)
+
+    def goal_configuration(self, model: RobotModel, strict: bool = False) -> np.ndarray:
+        """q (dof,): the start configuration with the goal joints set (fingers keep start values)."""
+        return _configuration(model, self.goal, self.start_configuration(model, strict), f"{self.source}: goal", strict)
+
+
+@dataclass(frozen=True)
+class MBMProblem:
+    """One MotionBenchMaker problem: ``scenario`` folder name, ``index`` (NNNN), scene, request."""
+
+    scenario: str
+    index: int
+    scene: Scene
+    request: MotionPlanRequest = field(repr=False)
+
+    def __iter__(self):
+        return iter((self.scenario, self.index, self.scene, self.request))
+
+
+def load_moveit_scene(path: str | os.PathLike, robot: RobotModel | None = None) -> Scene:
+    """Read a MoveIt PlanningScene YAML file; collision objects become obstacles.
+
+    Args:
+        path: the ``sceneNNNN.yaml`` file.
+        robot: if given, the scene holds it as ``robot.name`` placed by the ``virtual_joint``
+            transform of ``robot_state`` (identity if absent) at the ``robot_state`` joint values
+            (joints the model does not have are ignored; the rest stay neutral).
+
+    Raises:
+        SceneError: unreadable file or a malformed / unsupported collision object.
+    """
+    path = Path(path)
+    return moveit_scene_from_dict(_read_yaml_file(path), str(path), robot)
+
+
+def load_motion_plan_request(path: str | os.PathLike) -> MotionPlanRequest:
+    """Read a MoveIt MotionPlanRequest YAML file (joint-space start and goal)."""
+    path = Path(path)
+    return motion_plan_request_from_dict(_read_yaml_file(path), str(path))
+
+
+def iter_mbm_problems(path: str | os.PathLike, robot: RobotModel | None = None) -> Iterator[MBMProblem]:
+    """Every sceneNNNN / requestNNNN pair under a folder or in a ``.tar.bz2`` (read in memory).
+
+    Problems come sorted by scenario (the folder holding the pair) and index. Each unpacks as
+    ``scenario, index, scene, request``.
+
+    Args:
+        path: a folder (searched recursively) or a tar archive (any compression tarfile reads).
+        robot: passed to :func:`load_moveit_scene`.
+
+    Raises:
+        SceneError: the path does not exist, or a scene has no request (or vice versa).
+    """
+    path = Path(path)
+    texts: dict[tuple[str, int], dict[str, tuple[str, str]]] = {}
+    for name, read in _problem_files(path):
+        match = _PROBLEM_FILE.match(Path(name).name)
+        if match:
+            key = (Path(name).parent.name, int(match.group(2)))
+            texts.setdefault(key, {})[match.group(1)] = (name, read())
+    for (scenario, index), pair in sorted(texts.items()):
+        if set(pair) != {"scene", "request"}:
+            missing = "request" if "scene" in pair else "scene"
+            raise SceneError(f"{path}: {scenario} problem {index:04d} has no {missing} file")
+        scene_name, scene_text = pair["scene"]
+        request_name, request_text = pair["request"]
+        scene = moveit_scene_from_dict(_parse(scene_text, scene_name), scene_name, robot)
+        request = motion_plan_request_from_dict(_parse(request_text, request_name), request_name)
+        yield MBMProblem(scenario, index, scene, request)
+
+
+def moveit_scene_from_dict(data: Any, source: str, robot: RobotModel | None = None) -> Scene:
+    """Build a :class:`Scene` from a parsed PlanningScene mapping; ``source`` prefixes errors."""
+    data = _mapping(data, source)
+    frames = {str(t.get("child_frame_id", "")): _transform(t.get("transform", {}), f"{source}: fixed_frame_transforms")
+              for t in data.get("fixed_frame_transforms") or [] if isinstance(t, Mapping)}
+    world = _mapping(data.get("world") or {}, f"{source}: world")
+    objects = world.get("collision_objects") or []
+    bodies = tuple(
+        _collision_object(obj, frames, f"{source}: world.collision_objects[{i}]{_label(obj)}")
+        for i, obj in enumerate(objects)
+    )
+    robots: tuple[PlacedRobot, ...] = ()
+    if robot is not None:
+        robots = (_placed_robot(data.get("robot_state") or {}, robot, f"{source}: robot_state"),)
+    return Scene(robots=robots, obstacles=bodies, source=source)
+
+
+def motion_plan_request_from_dict(data: Any, source: str) -> MotionPlanRequest:
+    """Build a :class:`MotionPlanRequest` from a parsed mapping; ``source`` prefixes errors."""
+    data = _mapping(data, source)
+    start_state = _mapping(data.get("start_state") or {}, f"{source}: start_state")
+    start = _joint_state(start_state.get("joint_state") or {}, f"{source}: start_state.joint_state")
+    goal: dict[str, float] = {}
+    constraints = data.get("goal_constraints") or []
+    if constraints:
+        for k, jc in enumerate(_mapping(constraints[0], f"{source}: goal_constraints[0]").get("joint_constraints") or []):
+            where = f"{source}: goal_constraints[0].joint_constraints[{k}]"
+            jc = _mapping(jc, where)
+            if "joint_name" not in jc:
+                raise SceneError(f"{where}: missing 'joint_name'")
+            goal[str(jc["joint_name"])] = _number(jc.get("position"), f"{where}.position")
+    return MotionPlanRequest(
+        group=str(data.get("group_name", "")),
+        start=start,
+        goal=goal,
+        planner_id=str(data.get("planner_id", "") or ""),
+        allowed_planning_time=_number(data.get("allowed_planning_time", 0.0), f"{source}: allowed_planning_time"),
+        num_planning_attempts=int(data.get("num_planning_attempts", 1) or 1),
+        source=source,
+    )
+
+
+def _collision_object(obj: Any, frames: Mapping[str, np.ndarray], where: str) -> Body:
+    obj = _mapping(obj, where)
+    name = str(obj.get("id", "")) or where.rsplit(": ", 1)[-1]
+    operation = obj.get("operation", 0)
+    if operation not in (0, "0", "ADD", "add", None):
+        raise SceneError(f"{where}: operation {operation!r} is not supported; valid: ADD (0)")
+    frame = str(_mapping(obj.get("header") or {}, f"{where}.header").get("frame_id", "") or "")
+    if frame in _WORLD_FRAMES:
+        T_world_frame = np.eye(4)
+    elif frame in frames:
+        T_world_frame = frames[frame]
+    else:
+        valid = ", ".join(["world", *frames])
+        raise SceneError(f"{where}.header.frame_id: frame '{frame}' is not supported; valid: {valid}")
+    T_world_object = T_world_frame @ (_pose(obj["pose"], f"{where}.pose") if obj.get("pose") else np.eye(4))
+    geometries = []
+    for kind, shapes_key, poses_key in (("primitive", "primitives", "primitive_poses"), ("mesh", "meshes", "mesh_poses")):
+        shapes = obj.get(shapes_key) or []
+        poses = obj.get(poses_key) or []
+        if len(poses) != len(shapes):
+            raise SceneError(f"{where}: {len(shapes)} {shapes_key} but {len(poses)} {poses_key}")
+        for k, (shape, pose) in enumerate(zip(shapes, poses)):
+            w = f"{where}.{shapes_key}[{k}]"
+            T_object_shape = _pose(pose, f"{where}.{poses_key}[{k}]")
+            if kind == "primitive":
+                geometries.append(Geometry(_primitive(shape, w), T_object_shape, f"{name}/{k}"))
+            else:
+                geometries.append(Geometry(_mesh(shape, w), T_object_shape, f"{name}/mesh{k}"))
+    if obj.get("planes"):
+        raise SceneError(f"{where}: planes are not supported (infinite); model the floor as a thin box")
+    if not geometries:
+        raise SceneError(f"{where}: collision object '{name}' has no primitives or meshes")
+    return Body(name, tuple(geometries), T_world_object)
+
+
+def _primitive(shape: Any, where: str):
+    shape = _mapping(shape, where)
+    kind = shape.get("type")
+    kind = _PRIMITIVE_IDS.get(kind, kind) if isinstance(kind, int) else str(kind).lower()
+    dims = shape.get("dimensions")
+    expected = {"box": 3, "sphere": 1, "cylinder": 2, "cone": 2}
+    if kind not in expected:
+        raise SceneError(f"{where}: unsupported primitive type {shape.get('type')!r}; valid: box, sphere, cylinder, cone")
+    if not isinstance(dims, (list, tuple)) or len(dims) != expected[kind]:
+        raise SceneError(f"{where}: {kind} needs {expected[kind]} dimensions, got {dims!r}")
+    values = [_number(v, f"{where}.dimensions[{i}]") for i, v in enumerate(dims)]
+    if any(v <= 0 for v in values):
+        raise SceneError(f"{where}: {kind} dimensions must be positive, got {values}")
+    if kind == "box":
+        return Box(tuple(values))
+    if kind == "sphere":
+        return Sphere(values[0])
+    height, radius = values  # SolidPrimitive: CYLINDER_HEIGHT = 0, CYLINDER_RADIUS = 1 (cone alike)
+    if kind == "cone":
+        log.warning("%s: cone replaced by its enclosing cylinder (height %g m, radius %g m)", where, height, radius)
+    return Cylinder(radius=radius, length=height)
+
+
+def _mesh(shape: Any, where: str) -> Mesh:
+    shape = _mapping(shape, where)
+    try:
+        vertices = np.array([[v["x"], v["y"], v["z"]] if isinstance(v, Mapping) else v
+                             for v in shape.get("vertices") or []], dtype=float)
+        faces = np.array([t["vertex_indices"] if isinstance(t, Mapping) else t
+                          for t in shape.get("triangles") or []], dtype=np.int64)
+    except (KeyError, TypeError, ValueError) as err:
+        raise SceneError(f"{where}: malformed vertices or triangles ({err})") from None
+    if vertices.ndim != 2 or vertices.shape[1:] != (3,) or faces.ndim != 2 or faces.shape[1:] != (3,) or not len(faces):
+        raise SceneError(f"{where}: expected vertices (n, 3) and triangles (m, 3), got {vertices.shape}, {faces.shape}")
+    if not np.all(np.isfinite(vertices)) or faces.min() < 0 or faces.max() >= len(vertices):
+        raise SceneError(f"{where}: non-finite vertices or triangle indices out of range")
+    return Mesh.from_arrays(vertices, faces)
+
+
+def _placed_robot(state: Any, model: RobotModel, where: str) -> PlacedRobot:
+    state = _mapping(state, where)
+    values = _joint_state(state.get("joint_state") or {}, f"{where}.joint_state")
+    q = model.neutral_configuration()
+    for joint, value in values.items():
+        if joint in model.joint_names:
+            q[model.joint_index(joint)] = value
+    T_world_base = np.eye(4)
+    multi = _mapping(state.get("multi_dof_joint_state") or {}, f"{where}.multi_dof_joint_state")
+    transforms = multi.get("transforms") or []
+    if transforms:
+        T_world_base = _transform(transforms[0], f"{where}.multi_dof_joint_state.transforms[0]")
+    return PlacedRobot(model.name, model, T_world_base, q, model.source)
+
+
+def _configuration(model: RobotModel, values: Mapping[str, float], base, where: str, strict: bool) -> np.ndarray:
+    unknown = [joint for joint in values if joint not in model.joint_names]
+    if (strict and unknown) or (values and len(unknown) == len(values)):
+        raise SceneError(
+            f"{where}: robot '{model.name}' has no joint '{unknown[0]}'; joints: {', '.join(model.joint_names)}"
+        )
+    return model.configuration_from_dict({j: v for j, v in values.items() if j not in unknown}, base)
+
+
+def _joint_state(state: Any, where: str) -> dict[str, float]:
+    state = _mapping(state, where)
+    names = state.get("name") or []
+    positions = state.get("position") or []
+    if len(names) != len(positions):
+        raise SceneError(f"{where}: {len(names)} names but {len(positions)} positions")
+    return {str(n): _number(p, f"{where}.position[{i}]") for i, (n, p) in enumerate(zip(names, positions))}
+
+
+def _pose(pose: Any, where: str) -> np.ndarray:
+    pose = _mapping(pose, where)
+    return _rigid(pose.get("position", [0, 0, 0]), pose.get("orientation", [0, 0, 0, 1]), where)
+
+
+def _transform(transform: Any, where: str) -> np.ndarray:
+    transform = _mapping(transform, where)
+    return _rigid(transform.get("translation", [0, 0, 0]), transform.get("rotation", [0, 0, 0, 1]), where)
+
+
+def _rigid(position: Any, orientation: Any, where: str) -> np.ndarray:
+    xyz = _vector(position, "xyz", f"{where}.position")
+    x, y, z, w = _vector(orientation, "xyzw", f"{where}.orientation (x, y, z, w)")
+    norm = float(np.linalg.norm([w, x, y, z]))
+    if abs(norm - 1.0) > 1e-3:
+        raise SceneError(f"{where}.orientation: not a unit quaternion (x, y, z, w) = {[x, y, z, w]} (norm {norm:.6g})")
+    return make_pose(quaternion_to_matrix(np.array([w, x, y, z])), xyz)
+
+
+def _vector(value: Any, keys: str, where: str) -> np.ndarray:
+    if isinstance(value, Mapping):
+        value = [value.get(k, 0.0 if k != "w" else 1.0) for k in keys]
+    if not isinstance(value, (list, tuple)) or len(value) != len(keys):
+        raise SceneError(f"{where}: expected {len(keys)} numbers ({', '.join(keys)}), got {value!r}")
+    return np.array([_number(v, f"{where}[{i}]") for i, v in enumerate(value)], dtype=float)
+
+
+def _number(value: Any, where: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise SceneError(f"{where}: expected a number, got {value!r}")
+    if not np.isfinite(value):
+        raise SceneError(f"{where}: must be finite, got {value}")
+    return float(value)
+
+
+def _mapping(value: Any, where: str) -> Mapping:
+    if not isinstance(value, Mapping):
+        raise SceneError(f"{where}: expected a mapping, got {type(value).__name__}")
+    return value
+
+
+def _label(obj: Any) -> str:
+    return f" '{obj['id']}'" if isinstance(obj, Mapping) and obj.get("id") else ""
+
+
+def _read_yaml_file(path: Path) -> Any:
+    if not path.is_file():
+        raise SceneError(f"{path}: file not found")
+    return _parse(path.read_text(encoding="utf-8"), str(path))
+
+
+def _parse(text: str, source: str) -> Any:
+    try:
+        return yaml.load(text, Loader=_Loader)
+    except yaml.YAMLError as err:
+        raise SceneError(f"{source}: not valid YAML ({err})") from None
+
+
+def _problem_files(path: Path):
+    """(name, reader) for each file of a folder or tar archive; names use '/' separators."""
+    if path.is_dir():
+        for file in sorted(path.rglob("*.y*ml")):
+            yield str(file), (lambda f=file: f.read_text(encoding="utf-8"))
+    elif path.is_file() and tarfile.is_tarfile(path):
+        with tarfile.open(path, "r:*") as archive:
+            for member in archive:
+                if member.isfile():
+                    data = archive.extractfile(member).read().decode("utf-8")
+                    yield f"{path}:{member.name}", (lambda d=data: d)
+    else:
+        raise SceneError(f"{path}: not a folder or tar archive of MoveIt problems")

@@ -1,0 +1,121 @@
+"""The `prehensile` command line (typer CliRunner)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from prehensile.cli.main import app
+from prehensile.kinematics import forward_kinematics
+from prehensile.model import load_urdf
+
+DATA = Path(__file__).parent / "data" / "scenes"
+URDF = DATA / "two_link.urdf"
+runner = CliRunner()
+
+
+def _run(*args: str):
+    return runner.invoke(app, [str(a) for a in args])
+
+
+def test_robot_info_bundled_json():
+    result = _run("robot", "info", "panda", "--json")
+    assert result.exit_code == 0, result.output
+    info = json.loads(result.stdout)
+    assert info["dof"] == len(info["joints"]) > 0
+    joint = info["joints"][0]
+    assert joint["type"] == "revolute"
+    assert joint["lower_deg"] == pytest.approx(np.degrees(joint["lower"]))
+    assert info["n_links"] > info["dof"]
+    assert all("preshapes" in e for e in info["end_effectors"])
+
+
+def test_robot_info_table_on_urdf_path():
+    result = _run("robot", "info", URDF)
+    assert result.exit_code == 0, result.output
+    for text in ("two_link", "dof: 2", "joint1", "joint2", "revolute", "-171.9", "143.2"):
+        assert text in result.stdout
+
+
+def test_robot_list_names_bundled_robots():
+    result = _run("robot", "list")
+    assert result.exit_code == 0 and "panda" in result.stdout.split()
+
+
+def test_fk_matches_library():
+    q = [0.1, -0.4]
+    result = _run("fk", URDF, "--q", *q, "--json")
+    assert result.exit_code == 0, result.output
+    data = json.loads(result.stdout)
+    model = load_urdf(URDF)
+    expected = forward_kinematics(model, np.array(q))
+    for name, pose in data["links"].items():
+        np.testing.assert_allclose(pose["matrix"], expected[model.link_index(name)], atol=1e-12)
+
+
+def test_fk_bundled_one_link_neutral_and_negative_values():
+    result = _run("fk", "panda", "--link", "panda_link4", "--json")
+    assert result.exit_code == 0, result.output
+    data = json.loads(result.stdout)
+    assert list(data["links"]) == ["panda_link4"]
+    table = _run("fk", URDF, "--q", "-0.5", "-1.0", "--link", "tool")
+    assert table.exit_code == 0, table.output
+    assert "tool" in table.stdout
+
+
+@pytest.mark.parametrize("args, fragment", [
+    (("fk", URDF, "--q", "0.1"), "has 2 joints"),
+    (("fk", URDF, "--q", "0.1", "abc"), "expected numbers"),
+    (("fk", URDF, "--link", "nope"), "has no link 'nope'"),
+    (("robot", "info", "r2d2"), "r2d2"),
+    (("check", DATA / "missing.yaml"), "scene file not found"),
+])
+def test_bad_input_is_one_red_line_with_exit_code_2(args, fragment):
+    result = _run(*args)
+    assert result.exit_code == 2
+    assert fragment in result.output
+    assert "Traceback" not in result.output
+    assert len(result.output.strip().splitlines()) == 1
+
+
+def test_check_exit_codes():
+    free = _run("check", DATA / "free.yaml")
+    assert free.exit_code == 0, free.output
+    assert "collision-free" in free.stdout
+    colliding = _run("check", DATA / "colliding.yaml", "--json")
+    assert colliding.exit_code == 1, colliding.output
+    data = json.loads(colliding.stdout)
+    assert data["free"] is False and data["robots"][0]["colliding_links"] == ["link2"]
+    assert data["colliding_bodies"] == ["post"]
+
+
+def test_check_bad_scene_file(tmp_path):
+    bad = tmp_path / "typo.yaml"
+    bad.write_text("obstacels: []\n")
+    result = _run("check", bad)
+    assert result.exit_code == 2
+    assert "typo.yaml" in result.output and "did you mean 'obstacles'" in result.output
+
+
+def test_demo_writes_png_and_json(tmp_path):
+    result = _run("demo", "--out", tmp_path / "out")
+    assert result.exit_code == 0, result.output
+    png, report = tmp_path / "out" / "demo.png", tmp_path / "out" / "demo.json"
+    assert png.stat().st_size > 10_000 and png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    data = json.loads(report.read_text())
+    assert {r["name"] for r in data["bundled_robots"]} >= {"nao", "armar3", "panda"}
+    links = {r["name"]: r["colliding_links"] for r in data["robots"]}
+    assert "panda_hand" in links["panda"] and links["nao"] == [] and links["armar3"] == []
+    assert data["free"] is False and "shelf" in data["colliding_bodies"]
+    assert "demo.png" in result.stdout and "demo.json" in result.stdout
+
+
+def test_check_with_sphere_models():
+    assert _run("check", DATA / "free.yaml", "--spheres").exit_code == 0
+    colliding = _run("check", DATA / "colliding.yaml", "--spheres", "--json")
+    assert colliding.exit_code == 1, colliding.output
+    assert json.loads(colliding.stdout)["method"] == "spheres"

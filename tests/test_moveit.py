@@ -1,0 +1,185 @@
+"""MoveIt PlanningScene / MotionPlanRequest import, on MotionBenchMaker problems and by hand."""
+
+from __future__ import annotations
+
+import logging
+import tarfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+from scipy.spatial.transform import Rotation
+
+from prehensile.errors import SceneError
+from prehensile.model import load_urdf
+from prehensile.model.geometry import Box, Cylinder, Sphere
+from prehensile.scene import iter_mbm_problems, load_motion_plan_request, load_moveit_scene
+from prehensile.scene.moveit import moveit_scene_from_dict
+
+MBM = Path(__file__).resolve().parents[1].parent / "shared" / "bench" / "mbm" / "panda"
+TARBALL = MBM / "problems.tar.bz2"
+needs_mbm = pytest.mark.skipif(not TARBALL.is_file(), reason=f"MBM problems not found at {TARBALL}")
+
+
+def _member_yaml(name: str) -> dict:
+    with tarfile.open(TARBALL) as archive:
+        return yaml.safe_load(archive.extractfile(name).read())
+
+
+def _expected_pose(pose: dict) -> np.ndarray:
+    """World pose from a MoveIt pose with scipy's (x, y, z, w) quaternion convention."""
+    T = np.eye(4)
+    T[:3, :3] = Rotation.from_quat(pose["orientation"]).as_matrix()
+    T[:3, 3] = pose["position"]
+    return T
+
+
+@pytest.fixture(scope="module")
+def problems():
+    if not TARBALL.is_file():
+        pytest.skip(f"MBM problems not found at {TARBALL}")
+    return list(iter_mbm_problems(TARBALL))
+
+
+@needs_mbm
+def test_all_400_problems_parse(problems):
+    assert len(problems) == 400
+    scenarios = {p.scenario for p in problems}
+    assert scenarios == {"table_pick_panda", "box_panda", "bookshelf_small_panda", "cage_panda"}
+    for scenario in scenarios:
+        assert sorted(p.index for p in problems if p.scenario == scenario) == list(range(1, 101))
+    for scenario, index, scene, request in problems:
+        assert scene.obstacles and request.group == "panda_arm"
+        assert len(request.goal) == 7 and "panda_finger_joint1" in request.start
+
+
+@needs_mbm
+def test_known_box_has_size_and_pose_from_the_file(problems):
+    raw = _member_yaml("problems/table_pick_panda/scene0001.yaml")
+    entry = next(o for o in raw["world"]["collision_objects"] if o["id"] == "table_top")
+    scene = next(p.scene for p in problems if p.scenario == "table_pick_panda" and p.index == 1)
+    body = next(b for b in scene.obstacles if b.name == "table_top")
+    ((geometry, T_world_geom),) = body.world_geometries()
+    assert isinstance(geometry.shape, Box)
+    np.testing.assert_allclose(geometry.shape.size, entry["primitives"][0]["dimensions"])
+    np.testing.assert_allclose(T_world_geom, _expected_pose(entry["primitive_poses"][0]), atol=1e-12)
+
+
+@needs_mbm
+def test_cylinders_keep_height_radius_order(problems):
+    raw = _member_yaml("problems/table_pick_panda/scene0001.yaml")
+    scene = next(p.scene for p in problems if p.scenario == "table_pick_panda" and p.index == 1)
+    bodies = {b.name: b for b in scene.obstacles}
+    checked = 0
+    for entry in raw["world"]["collision_objects"]:
+        if entry["primitives"][0]["type"] == "cylinder":
+            height, radius = entry["primitives"][0]["dimensions"]
+            shape = bodies[entry["id"]].geometries[0].shape
+            assert isinstance(shape, Cylinder) and shape.length == height and shape.radius == radius
+            checked += 1
+    assert checked >= 2  # Can1 is [0.12, 0.03]: 12 cm tall, 3 cm radius
+
+
+@needs_mbm
+def test_request_start_and_goal_configurations():
+    with tarfile.open(TARBALL) as archive:
+        raw = yaml.safe_load(archive.extractfile("problems/box_panda/request0007.yaml").read())
+    problem = next(p for p in iter_mbm_problems(TARBALL) if p.scenario == "box_panda" and p.index == 7)
+    group, start, goal = problem.request
+    assert group == raw["group_name"]
+    assert list(start.values()) == raw["start_state"]["joint_state"]["position"]
+    assert goal == {c["joint_name"]: c["position"] for c in raw["goal_constraints"][0]["joint_constraints"]}
+    model = load_urdf(MBM / "panda.urdf")
+    q_goal = problem.request.goal_configuration(model)
+    assert q_goal[model.joint_index("panda_joint3")] == goal["panda_joint3"]
+    if "panda_finger_joint1" in model.joint_names:
+        assert q_goal[model.joint_index("panda_finger_joint1")] == start["panda_finger_joint1"]
+
+
+@needs_mbm
+def test_folder_and_single_files_with_robot(tmp_path):
+    with tarfile.open(TARBALL) as archive:
+        for name in ("scene0003.yaml", "request0003.yaml"):
+            member = archive.getmember(f"problems/cage_panda/{name}")
+            (tmp_path / "cage_panda").mkdir(exist_ok=True)
+            (tmp_path / "cage_panda" / name).write_bytes(archive.extractfile(member).read())
+    ((scenario, index, scene, request),) = list(iter_mbm_problems(tmp_path))
+    assert (scenario, index) == ("cage_panda", 3)
+    model = load_urdf(MBM / "panda.urdf")
+    single = load_moveit_scene(tmp_path / "cage_panda" / "scene0003.yaml", robot=model)
+    assert len(single.obstacles) == len(scene.obstacles)
+    (robot,) = single.robots
+    assert robot.model is model and robot.configuration.shape == (model.dof,)
+    single_request = load_motion_plan_request(tmp_path / "cage_panda" / "request0003.yaml")
+    assert tuple(single_request) == tuple(request) and single_request.source == request.source
+
+
+def test_object_pose_composes_with_primitive_poses():
+    data = {"world": {"collision_objects": [{
+        "id": "crate",
+        "pose": {"position": [1.0, 0.0, 0.0], "orientation": [0, 0, 0.7071067811865476, 0.7071067811865476]},
+        "primitives": [{"type": "box", "dimensions": [0.1, 0.2, 0.3]}, {"type": 2, "dimensions": [0.05]}],
+        "primitive_poses": [{"position": [0.5, 0, 0], "orientation": {"x": 0, "y": 0, "z": 0, "w": 1}},
+                            {"position": {"x": 0, "y": 0, "z": 1}, "orientation": [0, 0, 0, 1]}],
+    }]}}
+    scene = moveit_scene_from_dict(data, "inline")
+    (box, T_box), (ball, T_ball) = scene.obstacles[0].world_geometries()
+    assert isinstance(box.shape, Box) and isinstance(ball.shape, Sphere)
+    np.testing.assert_allclose(T_box[:3, 3], [1.0, 0.5, 0.0], atol=1e-12)  # rotated 90 deg about z
+    np.testing.assert_allclose(T_ball[:3, 3], [1.0, 0.0, 1.0], atol=1e-12)
+
+
+def test_cone_becomes_enclosing_cylinder(caplog):
+    data = {"world": {"collision_objects": [{
+        "id": "cone", "primitives": [{"type": "cone", "dimensions": [0.4, 0.1]}],
+        "primitive_poses": [{"position": [0, 0, 0], "orientation": [0, 0, 0, 1]}]}]}}
+    with caplog.at_level(logging.WARNING):
+        scene = moveit_scene_from_dict(data, "inline")
+    assert scene.obstacles[0].geometries[0].shape == Cylinder(radius=0.1, length=0.4)
+    assert "enclosing cylinder" in caplog.text
+
+
+def test_inline_mesh_is_kept():
+    data = {"world": {"collision_objects": [{
+        "id": "tri",
+        "meshes": [{"vertices": [{"x": 0, "y": 0, "z": 0}, [1, 0, 0], [0, 1, 0], [0, 0, 1]],
+                    "triangles": [{"vertex_indices": [0, 1, 2]}, [0, 1, 3]]}],
+        "mesh_poses": [{"position": [0, 0, 0], "orientation": [0, 0, 0, 1]}]}]}}
+    shape = moveit_scene_from_dict(data, "inline").obstacles[0].geometries[0].shape
+    assert shape.trimesh.faces.shape == (2, 3)
+
+
+@pytest.mark.parametrize("obj, fragment", [
+    ({"id": "x", "primitives": [{"type": "prism", "dimensions": [1]}], "primitive_poses": [{}]}, "unsupported primitive type"),
+    ({"id": "x", "primitives": [{"type": "box", "dimensions": [1, 2]}], "primitive_poses": [{}]}, "needs 3 dimensions"),
+    ({"id": "x", "primitives": [{"type": "sphere", "dimensions": [-1]}], "primitive_poses": [{}]}, "must be positive"),
+    ({"id": "x", "primitives": [{"type": "box", "dimensions": [1, 1, 1]}], "primitive_poses": []}, "1 primitives but 0"),
+    ({"id": "x", "primitives": [{"type": "box", "dimensions": [1, 1, 1]}],
+      "primitive_poses": [{"orientation": [0, 0, 0, 2]}]}, "not a unit quaternion"),
+    ({"id": "x", "header": {"frame_id": "panda_hand"}, "primitives": [{"type": "box", "dimensions": [1, 1, 1]}],
+      "primitive_poses": [{}]}, "frame 'panda_hand' is not supported"),
+    ({"id": "x"}, "has no primitives or meshes"),
+])
+def test_bad_collision_objects(obj, fragment):
+    with pytest.raises(SceneError) as info:
+        moveit_scene_from_dict({"world": {"collision_objects": [obj]}}, "bad.yaml")
+    assert "bad.yaml: world.collision_objects[0] 'x'" in str(info.value) and fragment in str(info.value)
+
+
+def test_missing_path_is_a_scene_error(tmp_path):
+    with pytest.raises(SceneError, match="not a folder or tar archive"):
+        list(iter_mbm_problems(tmp_path / "absent"))
+    with pytest.raises(SceneError, match="file not found"):
+        load_moveit_scene(tmp_path / "scene0001.yaml")
+
+
+@needs_mbm
+def test_request_for_another_robot_is_rejected():
+    request = next(iter(iter_mbm_problems(TARBALL))).request
+    model = load_urdf(MBM / "panda.urdf")
+    with pytest.raises(SceneError, match="has no joint"):
+        request.start_configuration(model, strict="panda_finger_joint1" not in model.joint_names)
+    other = type(request)("arm", {"elbow": 1.0}, {"elbow": 0.0}, source="other.yaml")
+    with pytest.raises(SceneError, match="other.yaml: start_state: robot 'panda' has no joint 'elbow'"):
+        other.goal_configuration(model)

@@ -1,0 +1,184 @@
+"""YAML scene files: loading, saving, validation messages, the bundled demo scene."""
+
+from __future__ import annotations
+
+import math
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from prehensile.errors import SceneError
+from prehensile.model.geometry import Box, Capsule, Cylinder, Mesh, Sphere
+from prehensile.scene import bundled_scene_path, check_scene, load_scene, save_scene
+from prehensile.spatial import quaternion_to_matrix, rpy_to_matrix
+
+DATA = Path(__file__).parent / "data" / "scenes"
+
+
+def _write(tmp_path: Path, data: dict, name: str = "scene.yaml") -> Path:
+    for file in ("two_link.urdf", "wedge.obj"):
+        shutil.copy(DATA / file, tmp_path / file)
+    path = tmp_path / name
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    return path
+
+
+def _base() -> dict:
+    return {
+        "version": 1,
+        "robots": [{"name": "arm", "robot": "two_link.urdf", "pose": {"position": [0.1, 0.2, 0.3], "rpy": [0, 0, 0.5]},
+                    "joints": {"joint1": 0.25, "joint2": -0.5}}],
+        "obstacles": [
+            {"name": "table", "pose": {"position": [1.0, 0.0, 0.4]},
+             "shapes": [{"type": "box", "size": [1.0, 0.6, 0.05]},
+                        {"type": "cylinder", "radius": 0.02, "length": 0.4, "pose": {"position": [0.4, 0.2, -0.2]}}]},
+            {"name": "shelf", "pose": {"position": [0, 1, 0], "quaternion": [math.cos(0.2), 0, 0, math.sin(0.2)]},
+             "shape": {"type": "mesh", "file": "wedge.obj", "scale": [1.0, 2.0, 1.5]}},
+        ],
+        "objects": [
+            {"name": "ball", "pose": {"position": [0.5, 0.5, 0.5]}, "shape": {"type": "sphere", "radius": 0.04}},
+            {"name": "pill", "shape": {"type": "capsule", "radius": 0.01, "length": 0.05, "name": "body"}},
+        ],
+    }
+
+
+def test_load_all_shape_types_and_poses(tmp_path):
+    scene = load_scene(_write(tmp_path, _base()))
+    (robot,) = scene.robots
+    assert robot.name == "arm" and robot.model.name == "two_link"
+    np.testing.assert_allclose(robot.T_world_base[:3, 3], [0.1, 0.2, 0.3])
+    np.testing.assert_allclose(robot.T_world_base[:3, :3], rpy_to_matrix(np.array([0, 0, 0.5])))
+    np.testing.assert_allclose(robot.configuration, [0.25, -0.5])
+    table, shelf = scene.obstacles
+    assert isinstance(table.geometries[0].shape, Box) and table.geometries[0].shape.size == (1.0, 0.6, 0.05)
+    assert isinstance(table.geometries[1].shape, Cylinder)
+    np.testing.assert_allclose(table.geometries[1].T_link_geom[:3, 3], [0.4, 0.2, -0.2])
+    np.testing.assert_allclose(shelf.T_world_body[:3, :3], quaternion_to_matrix(np.array([math.cos(0.2), 0, 0, math.sin(0.2)])))
+    mesh = shelf.geometries[0].shape
+    assert isinstance(mesh, Mesh) and mesh.path == (tmp_path / "wedge.obj").resolve() and mesh.scale == (1.0, 2.0, 1.5)
+    ball, pill = scene.objects
+    assert isinstance(ball.geometries[0].shape, Sphere)
+    assert isinstance(pill.geometries[0].shape, Capsule) and pill.geometries[0].name == "body"
+    assert len(scene.collision_obstacles()) == 5
+
+
+def test_round_trip_to_another_folder(tmp_path):
+    original = load_scene(_write(tmp_path, _base()))
+    target = tmp_path / "elsewhere" / "copy.yaml"
+    save_scene(original, target)
+    assert not list(target.parent.glob("*.tmp"))
+    again = load_scene(target)
+    assert again.robots[0].model.source == original.robots[0].model.source
+    np.testing.assert_allclose(again.robots[0].T_world_base, original.robots[0].T_world_base, atol=1e-12)
+    np.testing.assert_allclose(again.robots[0].configuration, original.robots[0].configuration)
+    for a, b in zip(original.bodies, again.bodies):
+        assert a.name == b.name
+        np.testing.assert_allclose(a.T_world_body, b.T_world_body, atol=1e-12)
+        for ga, gb in zip(a.geometries, b.geometries):
+            np.testing.assert_allclose(ga.T_link_geom, gb.T_link_geom, atol=1e-12)
+            if isinstance(ga.shape, Mesh):
+                assert ga.shape.path == gb.shape.path and ga.shape.scale == gb.shape.scale
+            else:
+                assert ga.shape == gb.shape
+    text = target.read_text()
+    assert "../wedge.obj" in text and "../two_link.urdf" in text
+
+
+def test_bundled_robot_by_name_round_trips(tmp_path):
+    pytest.importorskip("prehensile.robots")
+    from prehensile import robots
+
+    name = robots.available()[0]
+    path = _write(tmp_path, {"robots": [{"robot": name}]})
+    scene = load_scene(path)
+    assert scene.robots[0].reference == name
+    save_scene(scene, tmp_path / "out.yaml")
+    assert yaml.safe_load((tmp_path / "out.yaml").read_text())["robots"][0]["robot"] == name
+
+
+def _mutate(change):
+    data = _base()
+    change(data)
+    return data
+
+
+CASES = [
+    ("unknown robot", lambda d: d["robots"][0].update(robot="r2d2"), ["robots[0] 'arm'", "unknown robot 'r2d2'", "bundled robots:"]),
+    ("missing robot file", lambda d: d["robots"][0].update(robot="nope/arm.urdf"), ["robots[0] 'arm'", "not found"]),
+    ("unknown joint", lambda d: d["robots"][0]["joints"].update(elbow=0.1), ["robots[0] 'arm'.joints", "'elbow'", "joint1, joint2"]),
+    ("joint outside limits", lambda d: d["robots"][0]["joints"].update(joint2=3.0), ["robots[0] 'arm'.joints.joint2", "limits"]),
+    ("missing mesh", lambda d: d["obstacles"][1]["shape"].update(file="gone.stl"), ["obstacles[1] 'shelf'", "gone.stl", "not found"]),
+    ("pose wrong length", lambda d: d["obstacles"][0]["pose"].update(position=[1, 2]), ["obstacles[0] 'table'", "position", "3 numbers"]),
+    ("rpy wrong length", lambda d: d["objects"][0].update(pose={"rpy": [0, 0]}), ["objects[0] 'ball'", "rpy", "3 numbers"]),
+    ("not a rotation", lambda d: d["obstacles"][1]["pose"].update(quaternion=[1, 1, 0, 0]), ["obstacles[1] 'shelf'", "not a rotation"]),
+    ("rpy and quaternion", lambda d: d["obstacles"][1]["pose"].update(rpy=[0, 0, 0]), ["obstacles[1] 'shelf'", "either 'rpy' or 'quaternion'"]),
+    ("nan pose", lambda d: d["objects"][0]["pose"].update(position=[0, float("nan"), 0]), ["objects[0] 'ball'", "finite"]),
+    ("nan size", lambda d: d["obstacles"][0]["shapes"][0].update(size=[1, float("nan"), 1]), ["obstacles[0] 'table'.shapes[0]", "finite"]),
+    ("negative radius", lambda d: d["objects"][0]["shape"].update(radius=-0.1), ["objects[0] 'ball'.shape", "radius", "positive"]),
+    ("zero length", lambda d: d["obstacles"][0]["shapes"][1].update(length=0), ["obstacles[0] 'table'.shapes[1]", "length", "positive"]),
+    ("unknown shape type", lambda d: d["objects"][0]["shape"].update(type="cone"), ["objects[0] 'ball'", "unknown shape type 'cone'", "box, sphere, cylinder, capsule, mesh"]),
+    ("typo in body key", lambda d: d["objects"][0].update(shpe={}), ["objects[0] 'ball'", "unknown key 'shpe'", "did you mean 'shape'", "valid keys"]),
+    ("typo in shape key", lambda d: d["objects"][0]["shape"].update(raduis=1), ["objects[0] 'ball'.shape", "unknown key 'raduis'", "radius"]),
+    ("typo in scene key", lambda d: d.update(obstacle=[]), ["unknown key 'obstacle'", "did you mean 'obstacles'"]),
+    ("typo in pose key", lambda d: d["objects"][0]["pose"].update(postion=[0, 0, 0]), ["objects[0] 'ball': pose", "'postion'", "position"]),
+    ("duplicate body name", lambda d: d["objects"][1].update(name="ball"), ["'ball' is used twice"]),
+    ("shape and shapes", lambda d: d["objects"][0].update(shapes=[]), ["objects[0] 'ball'", "exactly one of 'shape'"]),
+    ("string size", lambda d: d["obstacles"][0]["shapes"][0].update(size="big"), ["obstacles[0] 'table'", "list of 3 numbers"]),
+    ("bad version", lambda d: d.update(version=7), ["version", "unsupported"]),
+]
+
+
+@pytest.mark.parametrize("change, fragments", [(c, f) for _, c, f in CASES], ids=[n for n, _, _ in CASES])
+def test_validation_errors_name_file_and_entry(tmp_path, change, fragments):
+    path = _write(tmp_path, _mutate(change), "bad_scene.yaml")
+    with pytest.raises(SceneError) as info:
+        load_scene(path)
+    message = str(info.value)
+    assert "bad_scene.yaml" in message
+    for fragment in fragments:
+        assert fragment in message
+
+
+def test_missing_and_malformed_files(tmp_path):
+    with pytest.raises(SceneError, match="scene file not found"):
+        load_scene(tmp_path / "none.yaml")
+    broken = tmp_path / "broken.yaml"
+    broken.write_text("robots: [unclosed\n")
+    with pytest.raises(SceneError, match="broken.yaml: not valid YAML"):
+        load_scene(broken)
+    assert load_scene(_write(tmp_path, {}, "empty.yaml")).bodies == ()
+
+
+def test_test_data_scenes_check_free_and_colliding():
+    free = check_scene(load_scene(DATA / "free.yaml"))
+    assert free.free and free.colliding_links == {}
+    colliding = check_scene(load_scene(DATA / "colliding.yaml"))
+    assert not colliding.free
+    assert colliding.colliding_links == {"arm": ("link2",)}
+    assert colliding.colliding_bodies() == ("post",)
+
+
+def test_bundled_demo_scene_has_colliding_and_free_robots():
+    scene = load_scene(bundled_scene_path("demo"))
+    assert [r.name for r in scene.robots] == ["panda", "nao", "armar3"]
+    result = check_scene(scene)
+    links = result.colliding_links
+    assert set(links) == {"panda"} and "panda_hand" in links["panda"]
+    assert "shelf" in result.colliding_bodies()
+    assert {r.robot for r in result.robots if r.free} == {"nao", "armar3"}
+
+
+def test_robot_robot_contacts_are_reported(tmp_path):
+    data = {"robots": [{"name": "a", "robot": "two_link.urdf"},
+                       {"name": "b", "robot": "two_link.urdf", "pose": {"position": [0.05, 0, 0]}}]}
+    result = check_scene(load_scene(_write(tmp_path, data)))
+    others = {c.other for r in result.robots for c in r.contacts}
+    assert "b/base_link" in others and "a/base_link" in others
+
+
+def test_unknown_check_method():
+    with pytest.raises(SceneError, match="valid: exact, spheres"):
+        check_scene(load_scene(DATA / "free.yaml"), "voxels")
