@@ -1,0 +1,207 @@
+"""Fast batched collision checking of a robot's sphere model against world primitives.
+
+Forward kinematics and every test run in one compiled kernel
+(:mod:`prehensile.collision.sphere_kernels`) that stops at the first collision of each
+configuration. Boxes, spheres, cylinders and capsules are tested exactly (ball against solid).
+Mesh obstacles are replaced by balls covering their triangles
+(:func:`~prehensile.collision.sphere_fit.cover_geometries`), which is conservative for surface
+contact, the same notion of contact as coal's mesh checks; a robot wholly inside a closed
+obstacle mesh is not detected by either checker.
+"""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+import numpy as np
+
+from prehensile.collision import sphere_kernels as K
+from prehensile.collision.acm import allowed_collision_matrix, rigid_bodies
+from prehensile.collision.sphere_fit import cover_geometries
+from prehensile.collision.spheres import SphereModel, generate_sphere_model
+from prehensile.collision.world import Obstacle
+from prehensile.errors import PrehensileError
+from prehensile.model.geometry import Box, Capsule, Cylinder, Geometry, Mesh, Sphere
+from prehensile.model.robot_model import RobotModel
+
+
+def obstacle_arrays(obstacles: Sequence[Obstacle], mesh_spheres: int = 32) -> dict[str, np.ndarray]:
+    """Flat obstacle arrays for the kernels (see :mod:`~prehensile.collision.sphere_kernels`).
+
+    Returns:
+        dict with ``otype`` (O,) int64, ``opose`` (O, 3, 4), ``oparam`` (O, 3), ``oaabb``
+        (O, 6) (m) and ``oname`` (O,) names; mesh obstacles expand into ``mesh_spheres`` balls.
+    """
+    types, poses, params, names = [], [], [], []
+    for obstacle in obstacles:
+        T = np.asarray(obstacle.T_world_shape, dtype=float)
+        if T.shape != (4, 4) or not np.all(np.isfinite(T)):
+            raise PrehensileError(f"obstacle '{obstacle.name}': T_world_shape must be a finite (4, 4) pose")
+        shape = obstacle.shape
+        if isinstance(shape, Mesh):
+            centers, radii = cover_geometries((Geometry(shape),), n_spheres=mesh_spheres, max_edge=np.inf)
+            for c, r in zip(centers @ T[:3, :3].T + T[:3, 3], radii):
+                pose = np.eye(4)[:3].copy()
+                pose[:, 3] = c
+                types.append(K.SPHERE), poses.append(pose), params.append([r, 0.0, 0.0]), names.append(obstacle.name)
+            continue
+        if isinstance(shape, Sphere):
+            kind, param = K.SPHERE, [shape.radius, 0.0, 0.0]
+        elif isinstance(shape, Box):
+            kind, param = K.BOX, [0.5 * s for s in shape.size]
+        elif isinstance(shape, Cylinder):
+            kind, param = K.CYLINDER, [shape.radius, 0.5 * shape.length, 0.0]
+        elif isinstance(shape, Capsule):
+            kind, param = K.CAPSULE, [shape.radius, 0.5 * shape.length, 0.0]
+        else:
+            raise PrehensileError(f"obstacle '{obstacle.name}': unsupported shape {type(shape).__name__}")
+        types.append(kind), poses.append(T[:3].copy()), params.append(param), names.append(obstacle.name)
+    otype = np.array(types, dtype=np.int64)
+    opose = np.array(poses, dtype=float).reshape(-1, 3, 4)
+    oparam = np.array(params, dtype=float).reshape(-1, 3)
+    oaabb = np.zeros((len(otype), 6))
+    for o in range(len(otype)):
+        R, p, (a, b, c) = opose[o, :, :3], opose[o, :, 3], oparam[o]
+        if otype[o] == K.SPHERE:
+            half = np.full(3, a)
+        elif otype[o] == K.BOX:
+            half = np.abs(R) @ np.array([a, b, c])
+        elif otype[o] == K.CYLINDER:  # disc extent a * sqrt(1 - n_i^2) plus axis extent b * |n_i|
+            half = a * np.sqrt(np.clip(1.0 - R[:, 2] ** 2, 0.0, 1.0)) + b * np.abs(R[:, 2])
+        else:
+            half = b * np.abs(R[:, 2]) + a
+        oaabb[o] = np.concatenate([p - half, p + half])
+    return {"otype": otype, "opose": np.ascontiguousarray(opose), "oparam": oparam, "oaabb": oaabb,
+            "oname": np.array(names, dtype=object)}
+
+
+def _tree_distance(model: RobotModel, a: int, b: int) -> int:
+    """Number of joints on the tree path between links a and b."""
+    up_a, up_b = model.path_to_root(a), model.path_to_root(b)
+    common = len(set(up_a) & set(up_b))
+    return len(up_a) + len(up_b) - 2 * common
+
+
+def _frames_and_groups(model: RobotModel, spheres: SphereModel) -> tuple[dict, dict]:
+    """Kinematic frames (moving rigid bodies) and ball groups (links with balls) for the kernels.
+
+    Links joined by fixed joints form one rigid body; its top link is the frame. Balls are
+    moved into their body's frame, so FK computes one pose per moving body only. Frame 0 is
+    the root body (its pose never changes).
+    """
+    body = rigid_bodies(model)
+    roots = [i for i in range(model.n_links) if body[i] == i]
+    frame_of = {r: f for f, r in enumerate(roots)}
+    T_body_link = np.tile(np.eye(4), (model.n_links, 1, 1))
+    for i in range(model.n_links):
+        if body[i] != i:
+            T_body_link[i] = T_body_link[model.link_parent[i]] @ model.joint_origin[i]
+    frames = {k: [] for k in ("parent", "jtype", "origin", "axis", "qidx", "mult", "offset")}
+    for r in roots:
+        p = int(model.link_parent[r])
+        frames["parent"].append(-1 if p < 0 else frame_of[int(body[p])])
+        frames["origin"].append(model.joint_origin[r] if p < 0 else T_body_link[p] @ model.joint_origin[r])
+        frames["jtype"].append(model.joint_type[r])
+        frames["axis"].append(model.joint_axis[r])
+        frames["qidx"].append(model.joint_q_index[r])
+        frames["mult"].append(model.joint_multiplier[r])
+        frames["offset"].append(model.joint_offset[r])
+    frames = {k: np.ascontiguousarray(v, dtype=np.int64 if k in ("parent", "jtype", "qidx") else float)
+              for k, v in frames.items()}
+    ranges = spheres.link_ranges()
+    bcenter, bradius = spheres.link_bounds()
+    links = [i for i in range(model.n_links) if ranges[i, 1] > ranges[i, 0]]
+    links.sort(key=lambda i: (frame_of[int(body[i])], i))  # the kernels need groups sorted by frame
+    centers, radii, g_bc = [], [], []
+    for i in links:
+        a, b = ranges[i]
+        T = T_body_link[i]
+        centers.append(spheres.centers[a:b] @ T[:3, :3].T + T[:3, 3])
+        radii.append(spheres.radii[a:b])
+        g_bc.append(T[:3, :3] @ bcenter[i] + T[:3, 3])
+    counts = np.array([len(r) for r in radii], dtype=np.int64)
+    stops = np.cumsum(counts)
+    groups = {
+        "link": np.array(links, dtype=np.int64),
+        "frame": np.array([frame_of[int(body[i])] for i in links], dtype=np.int64),
+        "ranges": np.column_stack([stops - counts, stops]).astype(np.int64).reshape(-1, 2),
+        "centers": np.ascontiguousarray(np.concatenate(centers) if centers else np.zeros((0, 3))),
+        "radii": np.concatenate(radii) if radii else np.zeros(0),
+        "bcenter": np.ascontiguousarray(np.array(g_bc, dtype=float).reshape(-1, 3)),
+        "bradius": bradius[links] if links else np.zeros(0),
+    }
+    return frames, groups
+
+
+class SphereChecker:
+    """Batched, compiled collision checks of a robot's balls against world obstacles and itself.
+
+    Args:
+        model: the robot.
+        obstacles: shapes fixed in the world.
+        T_world_base: pose (4, 4) of the robot root; identity if None.
+        spheres: the robot's sphere model; default :func:`generate_sphere_model` (cached,
+            covering the collision geometry).
+        acm: (L, L) bool allowed-collision matrix (True = skip); default
+            :func:`~prehensile.collision.acm.allowed_collision_matrix`.
+        mesh_spheres: balls per mesh obstacle.
+    """
+
+    def __init__(self, model: RobotModel, obstacles: Sequence[Obstacle], T_world_base: np.ndarray | None = None,
+                 spheres: SphereModel | None = None, acm: np.ndarray | None = None, mesh_spheres: int = 32) -> None:
+        self.model = model
+        self.spheres = generate_sphere_model(model) if spheres is None else spheres
+        if tuple(self.spheres.link_names) != tuple(model.link_names):
+            raise PrehensileError("SphereChecker: the sphere model belongs to a different robot (link lists differ)")
+        self.acm = allowed_collision_matrix(model) if acm is None else np.asarray(acm, dtype=bool)
+        self.T_world_base = np.eye(4) if T_world_base is None else np.ascontiguousarray(T_world_base, dtype=float)
+        frames, groups = _frames_and_groups(model, self.spheres)
+        g_link = groups["link"]
+        pairs = [(a, b) for a in range(len(g_link)) for b in range(a + 1, len(g_link))
+                 if not self.acm[g_link[a], g_link[b]]]
+        # links close in the tree touch most often: test them first (earlier exits);
+        # the group with fewer balls goes first in a pair (it is the outer loop)
+        pairs.sort(key=lambda p: (_tree_distance(model, int(g_link[p[0]]), int(g_link[p[1]])), p))
+        count = lambda g: groups["ranges"][g, 1] - groups["ranges"][g, 0]  # noqa: E731
+        pairs = [(a, b) if count(a) <= count(b) else (b, a) for a, b in pairs]
+        self.obstacle_data = obstacle_arrays(obstacles, mesh_spheres)
+        d = self.obstacle_data
+        static = groups["frame"] == 0  # frame 0 is the model root: it never moves
+        self._args = (
+            *(frames[k] for k in ("parent", "jtype", "origin", "axis", "qidx", "mult", "offset")),
+            groups["frame"], groups["ranges"], groups["centers"], groups["radii"], groups["bcenter"],
+            groups["bradius"], ~static,
+            d["otype"], d["opose"], d["oparam"], d["oaabb"], np.array(pairs, dtype=np.int64).reshape(-1, 2),
+        )
+        # balls on the root body do not move: test them against the world once, here
+        static_args = list(self._args)
+        static_args[13] = static  # gtest: only the root body's groups
+        static_args[-1] = np.zeros((0, 2), dtype=np.int64)
+        self._static_hit = K.check_batch(np.zeros((1, model.dof)), self.T_world_base, *static_args,
+                                         np.empty(1, dtype=np.bool_), True) == 0
+
+    def is_free(self, q: np.ndarray) -> np.ndarray:
+        """(*batch,) bool: no ball meets an obstacle or a ball of a non-allowed link, for q
+        (*batch, dof) (rad or m)."""
+        q = self.model.check_configuration(q)
+        flat = np.ascontiguousarray(q.reshape(-1, self.model.dof))
+        out = np.empty(len(flat), dtype=np.bool_)
+        if self._static_hit:
+            out[:] = False
+        else:
+            K.check_batch(flat, self.T_world_base, *self._args, out, False)
+        return out.reshape(q.shape[:-1])
+
+    def first_collision(self, q_path: np.ndarray) -> int:
+        """Index of the first colliding configuration of q_path (N, dof), or -1 if all are free.
+
+        Checks in order and stops at the first collision (an edge check for planners: pass
+        the interpolated configurations of the edge).
+        """
+        q_path = self.model.check_configuration(q_path, "q_path")
+        if q_path.ndim != 2:
+            raise PrehensileError(f"q_path: expected shape (N, {self.model.dof}), got {q_path.shape}")
+        if self._static_hit:
+            return 0 if len(q_path) else -1
+        out = np.empty(len(q_path), dtype=np.bool_)
+        return int(K.check_batch(np.ascontiguousarray(q_path), self.T_world_base, *self._args, out, True))

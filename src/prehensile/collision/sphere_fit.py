@@ -1,0 +1,290 @@
+"""Sphere covers of collision geometry: exact covers of primitives, clustered covers of meshes.
+
+Every cover here is *conservative by construction*: a ball that contains the three vertices of
+a triangle contains the whole triangle (balls are convex), so a set of balls that each contain
+every vertex of their assigned triangles covers the triangulated surface. Primitives get
+closed-form covers of the solid shape (not of a tessellation, which would lie inside it).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from prehensile.model.geometry import Box, Capsule, Cylinder, Geometry, Mesh, Sphere, shape_to_trimesh
+
+
+def geometry_triangles(geometry: Geometry, max_edge: float | None = None) -> np.ndarray:
+    """Triangles of ``geometry`` in the link frame, shape (T, 3, 3) (m).
+
+    Primitives are tessellated with :func:`~prehensile.model.geometry.shape_to_trimesh`; the
+    tessellation of round shapes lies inside the true surface, so use it for sampling, not
+    for covering (see :func:`cover_geometry`).
+
+    Args:
+        geometry: the shape and its pose in the link.
+        max_edge: if given, triangles are subdivided until no edge is longer (m).
+    """
+    mesh = shape_to_trimesh(geometry.shape)
+    vertices = np.asarray(mesh.vertices, dtype=float)
+    faces = np.asarray(mesh.faces, dtype=np.int64)
+    if max_edge is not None and len(faces):
+        import trimesh
+
+        vertices, faces = trimesh.remesh.subdivide_to_size(vertices, faces, max_edge=max_edge, max_iter=20)
+    T = np.asarray(geometry.T_link_geom, dtype=float)
+    vertices = vertices @ T[:3, :3].T + T[:3, 3]
+    return vertices[faces]
+
+
+def enclosing_ball(points: np.ndarray, iterations: int = 200) -> tuple[np.ndarray, float]:
+    """A near-minimal ball containing every point of ``points`` (N, 3).
+
+    The centre follows the Badoiu-Clarkson iteration (step towards the farthest point with
+    step 1/(k+1)), which converges to the minimum enclosing ball; the radius is then the exact
+    largest distance from that centre, so the ball always contains all points.
+
+    Returns:
+        (centre (3,), radius) in the units of ``points``.
+    """
+    points = np.asarray(points, dtype=float)
+    center = 0.5 * (points.min(axis=0) + points.max(axis=0))
+    for k in range(1, iterations + 1):
+        far = points[np.argmax(np.einsum("ij,ij->i", points - center, points - center))]
+        center = center + (far - center) / (k + 1)
+    radius = float(np.sqrt(np.max(np.einsum("ij,ij->i", points - center, points - center))))
+    return center, radius
+
+
+def hull_planes(points: np.ndarray) -> np.ndarray:
+    """(F, 4) outward facet planes (unit normal a, offset d; inside a.x + d <= 0) of the
+    convex hull of points (N, 3); empty when the points are degenerate (flat)."""
+    from scipy.spatial import ConvexHull, QhullError
+
+    try:
+        return ConvexHull(np.asarray(points, dtype=float)).equations
+    except (QhullError, ValueError):
+        return np.zeros((0, 4))
+
+
+def _radius(center: np.ndarray, points: np.ndarray) -> float:
+    diff = points - center
+    return float(np.sqrt(np.max(np.einsum("ij,ij->i", diff, diff))))
+
+
+def push_inside(center: np.ndarray, points: np.ndarray, direction: np.ndarray, planes: np.ndarray,
+                steps: int = 24) -> np.ndarray:
+    """Move a ball centre along +-``direction`` to minimise how far the ball enclosing
+    ``points`` (N, 3) sticks out of the convex body ``planes`` (F, 4).
+
+    The ball's radius at centre c is the largest distance to ``points`` (so it keeps holding
+    them); its protrusion is ``max_f(a_f . c + d_f) + r(c)``. Candidates lie on the chord of
+    the body through ``center`` along ``direction``.
+    """
+    if len(planes) == 0 or not np.linalg.norm(direction) > 0:
+        return center
+    direction = direction / np.linalg.norm(direction)
+    a, d = planes[:, :3], planes[:, 3]
+    slack = -(a @ center + d)  # >= 0 inside
+    rate = a @ direction
+    with np.errstate(divide="ignore", invalid="ignore"):
+        forward = np.min(np.where(rate > 1e-12, slack / rate, np.inf))
+        backward = np.min(np.where(rate < -1e-12, -slack / rate, np.inf))
+    forward, backward = max(0.0, min(forward, 1.0)), max(0.0, min(backward, 1.0))
+    best, best_cost = center, np.inf
+    for t in np.linspace(-backward, forward, steps):
+        c = center + t * direction
+        cost = float(np.max(a @ c + d)) + _radius(c, points)
+        if cost < best_cost - 1e-12:
+            best, best_cost = c, cost
+    return best
+
+
+def cover_triangles(triangles: np.ndarray, n_spheres: int, refine: int = 4,
+                    planes: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Cover triangles (T, 3, 3) with at most ``n_spheres`` balls.
+
+    Triangle centroids are clustered with area-weighted k-means (deterministic farthest-point
+    initialisation). Then ``refine`` rounds: each triangle goes to the ball that would need the
+    smallest radius to hold its three vertices; each ball becomes the near-minimal enclosing
+    ball of its triangles' vertices, and its centre is pushed along the patch normal into the
+    body (:func:`push_inside` against ``planes``, default the convex hull of the triangles) so
+    that the ball sticks out of the surface as little as possible. Each final radius is the
+    largest vertex distance of its triangles, so every triangle lies inside its ball.
+
+    Returns:
+        centres (K, 3) and radii (K,) in m, K <= n_spheres.
+    """
+    triangles = np.asarray(triangles, dtype=float)
+    n = len(triangles)
+    if n == 0:
+        return np.zeros((0, 3)), np.zeros(0)
+    if planes is None:
+        planes = hull_planes(triangles.reshape(-1, 3))
+    k = max(1, min(int(n_spheres), n))
+    centroids = triangles.mean(axis=1)
+    normals = np.cross(triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0])  # 2 * area
+    weight = 0.5 * np.linalg.norm(normals, axis=1) + 1e-12
+    seeds = [int(np.argmax(np.linalg.norm(centroids - centroids.mean(axis=0), axis=1)))]
+    dist = np.linalg.norm(centroids - centroids[seeds[0]], axis=1)
+    for _ in range(1, k):
+        seeds.append(int(np.argmax(dist)))
+        dist = np.minimum(dist, np.linalg.norm(centroids - centroids[seeds[-1]], axis=1))
+    centers = centroids[seeds].copy()
+    for _ in range(30):
+        label = np.argmin(((centroids[:, None, :] - centers[None]) ** 2).sum(-1), axis=1)
+        for j in range(k):
+            mask = label == j
+            if mask.any():
+                centers[j] = np.average(centroids[mask], axis=0, weights=weight[mask])
+    for _ in range(refine + 1):
+        need = np.sqrt(((triangles[:, :, None, :] - centers[None, None]) ** 2).sum(-1)).max(axis=1)
+        label = np.argmin(need, axis=1)
+        out = []
+        for j in range(k):
+            mask = label == j
+            if mask.any():
+                points = triangles[mask].reshape(-1, 3)
+                c, _ = enclosing_ball(points)
+                out.append(push_inside(c, points, normals[mask].sum(axis=0), planes))
+        centers = np.array(out)
+        k = len(centers)
+    need = np.sqrt(((triangles[:, :, None, :] - centers[None, None]) ** 2).sum(-1)).max(axis=1)
+    label = np.argmin(need, axis=1)
+    radii = np.zeros(k)
+    for j in range(k):
+        mask = label == j
+        if mask.any():
+            radii[j] = need[mask, j].max()
+    keep = radii > 0
+    return centers[keep], radii[keep]
+
+
+def _box_cover(size: np.ndarray, budget: int) -> tuple[np.ndarray, np.ndarray]:
+    """Balls circumscribing a grid of sub-boxes of a box of full ``size`` (3,) centred at 0."""
+    side = float(np.min(size))
+    while True:
+        counts = np.maximum(1, np.ceil(size / side - 1e-9)).astype(int)
+        if counts.prod() <= max(1, budget):
+            break
+        side *= 1.2
+    cell = size / counts
+    axes = [(np.arange(c) + 0.5) * cell[i] - 0.5 * size[i] for i, c in enumerate(counts)]
+    grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+    return grid, np.full(len(grid), 0.5 * float(np.linalg.norm(cell)))
+
+
+def _axis_cover(radius: float, length: float, budget: int, caps: bool) -> tuple[np.ndarray, np.ndarray]:
+    """Balls covering a solid cylinder (z axis, centred) and, with ``caps``, its hemispherical caps.
+
+    A slab of the cylinder of thickness d is inside the ball of radius sqrt(r^2 + (d/2)^2)
+    at its centre; each cap is the ball of radius r at the segment end.
+    """
+    slots = max(1, budget - (2 if caps else 0))
+    n = int(min(slots, max(1, np.ceil(length / (2.0 * radius) - 1e-9))))
+    d = length / n
+    z = (np.arange(n) + 0.5) * d - 0.5 * length
+    centers = np.column_stack([np.zeros(n), np.zeros(n), z])
+    radii = np.full(n, float(np.hypot(radius, 0.5 * d)))
+    if caps:
+        ends = np.array([[0.0, 0.0, -0.5 * length], [0.0, 0.0, 0.5 * length]])
+        centers = np.vstack([centers, ends])
+        radii = np.concatenate([radii, [radius, radius]])
+    return centers, radii
+
+
+def cover_primitive(geometry: Geometry, budget: int = 8) -> tuple[np.ndarray, np.ndarray]:
+    """Exact cover of a primitive solid by at most about ``budget`` balls, in the link frame.
+
+    Returns:
+        centres (K, 3) and radii (K,) in m.
+
+    Raises:
+        TypeError: ``geometry.shape`` is a mesh (use :func:`cover_triangles`).
+    """
+    shape = geometry.shape
+    if isinstance(shape, Sphere):
+        centers, radii = np.zeros((1, 3)), np.array([float(shape.radius)])
+    elif isinstance(shape, Box):
+        centers, radii = _box_cover(np.asarray(shape.size, dtype=float), budget)
+    elif isinstance(shape, Cylinder):
+        centers, radii = _axis_cover(float(shape.radius), float(shape.length), budget, caps=False)
+    elif isinstance(shape, Capsule):
+        centers, radii = _axis_cover(float(shape.radius), float(shape.length), budget, caps=True)
+    else:
+        raise TypeError(f"cover_primitive: {type(shape).__name__} is not a primitive")
+    T = np.asarray(geometry.T_link_geom, dtype=float)
+    return centers @ T[:3, :3].T + T[:3, 3], radii
+
+
+def cover_geometries(
+    geometries: tuple[Geometry, ...], n_spheres: int = 8, max_radius: float | None = None,
+    max_edge: float = 0.02, max_spheres: int = 64,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Balls covering all ``geometries`` of one link (link frame).
+
+    Meshes are merged and covered by :func:`cover_triangles` with ``n_spheres`` balls (more,
+    up to ``max_spheres``, while the largest radius exceeds ``max_radius``); primitives get
+    their exact covers with the same budget.
+
+    Args:
+        geometries: the link's collision geometries.
+        n_spheres: balls for the link's meshes (and budget per primitive).
+        max_radius: optional largest radius (m) for mesh covers.
+        max_edge: triangles are subdivided to this edge length (m) before clustering.
+        max_spheres: cap on the number of balls for the meshes.
+
+    Returns:
+        centres (K, 3) and radii (K,) in m.
+    """
+    centers, radii, triangles = [np.zeros((0, 3))], [np.zeros(0)], []
+    for geometry in geometries:
+        if isinstance(geometry.shape, Mesh):
+            triangles.append(geometry_triangles(geometry, max_edge))
+        else:
+            c, r = cover_primitive(geometry, n_spheres)
+            centers.append(c)
+            radii.append(r)
+    if triangles:
+        tris = np.concatenate(triangles)
+        k = n_spheres
+        while True:
+            c, r = cover_triangles(tris, k)
+            if max_radius is None or r.max() <= max_radius or k >= max_spheres or len(c) < k:
+                break
+            k = min(max_spheres, k + max(1, k // 4))
+        centers.append(c)
+        radii.append(r)
+    return np.concatenate(centers), np.concatenate(radii)
+
+
+def pad_to_cover(centers: np.ndarray, radii: np.ndarray, triangles: np.ndarray,
+                 max_growth: float = np.inf) -> tuple[np.ndarray, np.ndarray]:
+    """Grow ``radii`` (K,) so that triangles (T, 3, 3) lie in one ball each.
+
+    A triangle already inside some ball is left alone; otherwise the ball needing the
+    smallest radius increase to contain the triangle's three vertices grows to do so, if its
+    radius stays within ``max_growth`` (m) of its original radius. Radii never shrink, so triangles covered earlier
+    stay covered.
+
+    Returns:
+        new radii (K,) and a (T,) bool mask of the triangles still not inside any ball
+        (all False when ``max_growth`` is infinite).
+    """
+    radii = np.array(radii, dtype=float)
+    limit = radii + max_growth
+    uncovered = np.ones(len(triangles), dtype=bool)
+    if len(triangles) == 0 or len(centers) == 0:
+        return radii, uncovered
+    need = np.sqrt(((triangles[:, :, None, :] - centers[None, None]) ** 2).sum(-1)).max(axis=1)
+    uncovered = ~np.any(need <= radii[None], axis=1)
+    order = np.flatnonzero(uncovered)
+    order = order[np.argsort(np.min(need[order] - radii[None], axis=1))]
+    for t in order:
+        growth = np.where(need[t] <= limit, need[t] - radii, np.inf)
+        j = int(np.argmin(growth))
+        if growth[j] <= 0.0:
+            uncovered[t] = False
+        elif np.isfinite(growth[j]):
+            radii[j] = need[t, j]
+            uncovered[t] = False
+    return radii, uncovered

@@ -1,0 +1,195 @@
+"""Compiled (numba) sphere-vs-world and sphere-vs-sphere checks with forward kinematics inside.
+
+Obstacles are flat arrays: ``otype`` (O,) (SPHERE, BOX, CYLINDER, CAPSULE), ``opose`` (O, 3, 4)
+the rotation and origin of each shape in the world, ``oparam`` (O, 3) (sphere: radius; box:
+half sides; cylinder and capsule: radius, half length of the z-axis segment) and ``oaabb``
+(O, 6) world box (min xyz, max xyz). Every test is exact for a ball against the solid shape.
+
+Forward kinematics runs only over the moving rigid bodies ("frames"); balls of links fixed to
+a body are stored in that body's frame. The hierarchy per configuration: a link's bounding
+ball is tested against an obstacle's AABB and then the obstacle itself; only then are the
+link's own balls placed and tested. Self pairs test the two bounding balls first, then each
+ball of one link against the other's bounding ball, and only the survivors against the other
+link's balls. The first collision ends the configuration.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+SPHERE, BOX, CYLINDER, CAPSULE = 0, 1, 2, 3
+FIXED, REVOLUTE, PRISMATIC = 0, 1, 2
+# fast-math without the "no NaN / no inf" assumptions (reassociation changes only the last bits)
+FAST = {"nsz", "arcp", "contract", "afn", "reassoc"}
+
+
+@njit(cache=True, inline="always")
+def _link_pose(poses, pp, origin, f, jtype, axis, value, out):
+    """poses[out] (top 3 rows) = poses[pp] @ origin[f] @ motion(jtype, axis[f], value).
+
+    Arrays are indexed in place (no views), which keeps numba from reference counting.
+
+    The joint motion is a rotation about ``axis`` by ``value`` (Rodrigues) or a translation
+    along it; everything stays in registers until the final write.
+    """
+    m00, m01, m02, m10, m11, m12, m20, m21, m22 = 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0
+    tx, ty, tz = 0.0, 0.0, 0.0
+    if jtype == REVOLUTE:
+        x, y, z = axis[f, 0], axis[f, 1], axis[f, 2]
+        cs, sn = np.cos(value), np.sin(value)
+        t = 1.0 - cs
+        m00, m01, m02 = t * x * x + cs, t * x * y - sn * z, t * x * z + sn * y
+        m10, m11, m12 = t * x * y + sn * z, t * y * y + cs, t * y * z - sn * x
+        m20, m21, m22 = t * x * z - sn * y, t * y * z + sn * x, t * z * z + cs
+    elif jtype == PRISMATIC:
+        tx, ty, tz = value * axis[f, 0], value * axis[f, 1], value * axis[f, 2]
+    # L = O @ [M | t]
+    l00 = origin[f, 0, 0] * m00 + origin[f, 0, 1] * m10 + origin[f, 0, 2] * m20
+    l01 = origin[f, 0, 0] * m01 + origin[f, 0, 1] * m11 + origin[f, 0, 2] * m21
+    l02 = origin[f, 0, 0] * m02 + origin[f, 0, 1] * m12 + origin[f, 0, 2] * m22
+    l03 = origin[f, 0, 0] * tx + origin[f, 0, 1] * ty + origin[f, 0, 2] * tz + origin[f, 0, 3]
+    l10 = origin[f, 1, 0] * m00 + origin[f, 1, 1] * m10 + origin[f, 1, 2] * m20
+    l11 = origin[f, 1, 0] * m01 + origin[f, 1, 1] * m11 + origin[f, 1, 2] * m21
+    l12 = origin[f, 1, 0] * m02 + origin[f, 1, 1] * m12 + origin[f, 1, 2] * m22
+    l13 = origin[f, 1, 0] * tx + origin[f, 1, 1] * ty + origin[f, 1, 2] * tz + origin[f, 1, 3]
+    l20 = origin[f, 2, 0] * m00 + origin[f, 2, 1] * m10 + origin[f, 2, 2] * m20
+    l21 = origin[f, 2, 0] * m01 + origin[f, 2, 1] * m11 + origin[f, 2, 2] * m21
+    l22 = origin[f, 2, 0] * m02 + origin[f, 2, 1] * m12 + origin[f, 2, 2] * m22
+    l23 = origin[f, 2, 0] * tx + origin[f, 2, 1] * ty + origin[f, 2, 2] * tz + origin[f, 2, 3]
+    for r in range(3):
+        p0, p1, p2 = poses[pp, r, 0], poses[pp, r, 1], poses[pp, r, 2]
+        poses[out, r, 0] = p0 * l00 + p1 * l10 + p2 * l20
+        poses[out, r, 1] = p0 * l01 + p1 * l11 + p2 * l21
+        poses[out, r, 2] = p0 * l02 + p1 * l12 + p2 * l22
+        poses[out, r, 3] = p0 * l03 + p1 * l13 + p2 * l23 + poses[pp, r, 3]
+
+
+@njit(cache=True, inline="always")
+def _hits(otype, opose, oparam, o, x, y, z, r):
+    """True if the ball (x, y, z, r) meets obstacle o's solid."""
+    dx, dy, dz = x - opose[o, 0, 3], y - opose[o, 1, 3], z - opose[o, 2, 3]
+    if otype[o] == SPHERE:
+        rr = r + oparam[o, 0]
+        return dx * dx + dy * dy + dz * dz <= rr * rr
+    lx = opose[o, 0, 0] * dx + opose[o, 1, 0] * dy + opose[o, 2, 0] * dz
+    ly = opose[o, 0, 1] * dx + opose[o, 1, 1] * dy + opose[o, 2, 1] * dz
+    lz = opose[o, 0, 2] * dx + opose[o, 1, 2] * dy + opose[o, 2, 2] * dz
+    if otype[o] == BOX:
+        ex = max(abs(lx) - oparam[o, 0], 0.0)
+        ey = max(abs(ly) - oparam[o, 1], 0.0)
+        ez = max(abs(lz) - oparam[o, 2], 0.0)
+        return ex * ex + ey * ey + ez * ez <= r * r
+    if otype[o] == CYLINDER:
+        radial = np.sqrt(lx * lx + ly * ly)
+        er = max(radial - oparam[o, 0], 0.0)
+        ez = max(abs(lz) - oparam[o, 1], 0.0)
+        return er * er + ez * ez <= r * r
+    ez = max(abs(lz) - oparam[o, 1], 0.0)  # capsule: distance to the axis segment
+    rr = r + oparam[o, 0]
+    return lx * lx + ly * ly + ez * ez <= rr * rr
+
+
+@njit(cache=True, inline="always")
+def _place(poses, f, c, i, out, k):
+    """out[k] = poses[f] applied to the point c[i]."""
+    x, y, z = c[i, 0], c[i, 1], c[i, 2]
+    out[k, 0] = poses[f, 0, 0] * x + poses[f, 0, 1] * y + poses[f, 0, 2] * z + poses[f, 0, 3]
+    out[k, 1] = poses[f, 1, 0] * x + poses[f, 1, 1] * y + poses[f, 1, 2] * z + poses[f, 1, 3]
+    out[k, 2] = poses[f, 2, 0] * x + poses[f, 2, 1] * y + poses[f, 2, 2] * z + poses[f, 2, 3]
+
+
+@njit(cache=True, fastmath=FAST)
+def check_batch(qs, T_world_base, fparent, fjtype, forigin, faxis, fqidx, fmult, foffset,
+                gframe, granges, centers, radii, gbcenter, gbradius, gtest,
+                otype, opose, oparam, oaabb, pairs, out, stop_at_first):
+    """Check configurations qs (B, dof); out[b] = qs[b] is free (out (B,) bool).
+
+    Returns the index of the first colliding configuration, or -1; with ``stop_at_first`` it
+    returns there (later entries of ``out`` are not written).
+
+    Frames (F) are the moving rigid bodies (a link and everything fixed to it): ``fparent``
+    (-1 for the world base), joint type, origin (F, 4, 4) in the parent frame, axis, q index,
+    mimic multiplier and offset. Groups (G) are the links with balls: ``gframe`` (G,) their
+    frame, ``granges`` (G, 2) their balls ``[start, stop)`` (centres in the frame), and a
+    bounding ball ``gbcenter`` (G, 3), ``gbradius`` (G,); groups are sorted by frame.
+    ``gtest`` (G,) bool marks the groups tested against obstacles, ``pairs`` (P, 2) the group
+    pairs tested against each other. The whole check is one loop nest (no per-configuration
+    call: passing two dozen arrays per call costs more than the checks themselves).
+    """
+    poses = np.empty((fparent.shape[0] + 1, 4, 4))  # poses[0] = base, frame f at f + 1
+    poses[0] = T_world_base
+    wc = np.empty((max(centers.shape[0], 1), 3))
+    wb = np.empty((max(gframe.shape[0], 1), 3))
+    placed = np.zeros(max(gframe.shape[0], 1), dtype=np.bool_)
+    first = -1
+    for b in range(qs.shape[0]):
+        free = True
+        # frames parents-first; each group meets the obstacles as soon as its frame is known,
+        # so a collision skips the remaining FK
+        g = 0
+        for f in range(fparent.shape[0]):
+            value = 0.0
+            if fqidx[f] >= 0:
+                value = fmult[f] * qs[b, fqidx[f]] + foffset[f]
+            _link_pose(poses, fparent[f] + 1, forigin, f, fjtype[f], faxis, value, f + 1)
+            while free and g < gframe.shape[0] and gframe[g] == f:
+                _place(poses, f + 1, gbcenter, g, wb, g)
+                placed[g] = False
+                if gtest[g]:
+                    bx, by, bz, br = wb[g, 0], wb[g, 1], wb[g, 2], gbradius[g]
+                    for o in range(otype.shape[0]):
+                        if (bx + br < oaabb[o, 0] or bx - br > oaabb[o, 3] or by + br < oaabb[o, 1]
+                                or by - br > oaabb[o, 4] or bz + br < oaabb[o, 2] or bz - br > oaabb[o, 5]):
+                            continue
+                        if not _hits(otype, opose, oparam, o, bx, by, bz, br):
+                            continue
+                        if not placed[g]:
+                            for s in range(granges[g, 0], granges[g, 1]):
+                                _place(poses, f + 1, centers, s, wc, s)
+                            placed[g] = True
+                        for s in range(granges[g, 0], granges[g, 1]):
+                            if _hits(otype, opose, oparam, o, wc[s, 0], wc[s, 1], wc[s, 2], radii[s]):
+                                free = False
+                                break
+                        if not free:
+                            break
+                g += 1
+            if not free:
+                break
+        if free:
+            for p in range(pairs.shape[0]):
+                i, j = pairs[p, 0], pairs[p, 1]
+                dx, dy, dz = wb[i, 0] - wb[j, 0], wb[i, 1] - wb[j, 1], wb[i, 2] - wb[j, 2]
+                rr = gbradius[i] + gbradius[j]
+                if dx * dx + dy * dy + dz * dz > rr * rr:
+                    continue
+                if not placed[i]:
+                    for s in range(granges[i, 0], granges[i, 1]):
+                        _place(poses, gframe[i] + 1, centers, s, wc, s)
+                    placed[i] = True
+                if not placed[j]:
+                    for s in range(granges[j, 0], granges[j, 1]):
+                        _place(poses, gframe[j] + 1, centers, s, wc, s)
+                    placed[j] = True
+                for s in range(granges[i, 0], granges[i, 1]):
+                    dx, dy, dz = wc[s, 0] - wb[j, 0], wc[s, 1] - wb[j, 1], wc[s, 2] - wb[j, 2]
+                    rr = radii[s] + gbradius[j]
+                    if dx * dx + dy * dy + dz * dz > rr * rr:  # ball s misses all of group j
+                        continue
+                    for t in range(granges[j, 0], granges[j, 1]):
+                        dx, dy, dz = wc[s, 0] - wc[t, 0], wc[s, 1] - wc[t, 1], wc[s, 2] - wc[t, 2]
+                        rr = radii[s] + radii[t]
+                        if dx * dx + dy * dy + dz * dz <= rr * rr:
+                            free = False
+                            break
+                    if not free:
+                        break
+                if not free:
+                    break
+        out[b] = free
+        if not free and first < 0:
+            first = b
+            if stop_at_first:
+                return first
+    return first

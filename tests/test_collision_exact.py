@@ -1,0 +1,134 @@
+"""Exact (coal) and sphere checkers on hand-made cases; allowed-collision matrices."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from prehensile.collision.acm import allowed_collision_matrix, compute_acm, rigid_bodies
+from prehensile.collision.exact import ExactChecker
+from prehensile.collision.sphere_checker import SphereChecker
+from prehensile.collision.world import Obstacle
+from prehensile.model.builder import JointSpec, LinkSpec, build_model
+from prehensile.model.geometry import Box, Capsule, Cylinder, Geometry, Sphere
+from prehensile.spatial import make_pose
+
+
+def _arm():
+    """Planar 2-link arm about z: base (cylinder and a post ball at (1, 0.5, 0.3)), upper
+    (sphere r 0.1 at x 0.5), tool fixed to upper with a box, fore (capsule along x from x 1.05
+    to 1.75 at q = 0) and a geometry-less tip. The SRDF-style list disables base-fore."""
+    rot_y = make_pose(np.array([[0.0, 0, 1], [0, 1, 0], [-1, 0, 0]]))  # capsule z-axis -> x
+    links = [
+        LinkSpec("base", collisions=[Geometry(Cylinder(0.1, 0.2)),
+                                     Geometry(Sphere(0.1), make_pose(position=[1.0, 0.5, 0.3]))]),
+        LinkSpec("upper", collisions=[Geometry(Sphere(0.1), make_pose(position=[0.5, 0, 0]))]),
+        LinkSpec("tool", collisions=[Geometry(Box((0.1, 0.1, 0.1)), make_pose(position=[0.8, 0, 0]))]),
+        LinkSpec("fore", collisions=[Geometry(Capsule(0.05, 0.6), rot_y @ make_pose(position=[0, 0, 0.4]))]),
+        LinkSpec("tip"),
+    ]
+    z = np.array([0.0, 0, 1])
+    joints = [
+        JointSpec("j1", "revolute", "base", "upper", make_pose(position=[0, 0, 0.3]), z, -3.0, 3.0),
+        JointSpec("jt", "fixed", "upper", "tool", np.eye(4)),
+        JointSpec("j2", "revolute", "upper", "fore", make_pose(position=[1.0, 0, 0]), z, -3.0, 3.0),
+        JointSpec("jtip", "fixed", "fore", "tip", make_pose(position=[0.8, 0, 0])),
+    ]
+    return build_model("arm", "test", links, joints, disabled_collision_pairs=[("base", "fore")])
+
+
+def test_acm_skips_adjacent_same_body_geometryless_and_srdf_pairs():
+    model = _arm()
+    names = model.link_names
+    acm = allowed_collision_matrix(model)
+    idx = {n: names.index(n) for n in names}
+    body = rigid_bodies(model)
+    assert body[idx["tool"]] == body[idx["upper"]]
+    assert acm[idx["upper"], idx["tool"]]  # same rigid body
+    assert acm[idx["base"], idx["upper"]] and acm[idx["base"], idx["tool"]]  # adjacent bodies
+    assert acm[idx["upper"], idx["fore"]] and acm[idx["tool"], idx["fore"]]
+    assert acm[idx["tip"]].all()  # no geometry
+    assert acm[idx["base"], idx["fore"]]  # disabled pair
+    assert not allowed_collision_matrix(model, srdf=False)[idx["base"], idx["fore"]]
+    assert np.array_equal(acm, acm.T)
+
+
+def test_compute_acm_is_superset_of_structural_pairs():
+    model = _arm()
+    acm = compute_acm(model, n_samples=50, rng=1)
+    structural = allowed_collision_matrix(model, srdf=False)
+    assert np.all(acm[structural])
+    assert np.array_equal(acm, compute_acm(model, n_samples=50, rng=1))
+
+
+def test_box_hits_known_link_and_distance_is_analytic():
+    model = _arm()
+    q = np.array([0.0, 0.0])
+    # upper's sphere sits at (0.5, 0, 0.3) with radius 0.1; a 0.2 box centred 0.25 above it
+    box = Obstacle("block", Box((0.2, 0.2, 0.2)), make_pose(position=[0.5, 0.0, 0.3 + 0.1 + 0.1 + 0.05]))
+    exact = ExactChecker(model, [box], acm=allowed_collision_matrix(model))
+    assert exact.is_free(q)
+    assert exact.min_distance(q) == pytest.approx(0.05, abs=1e-6)
+    hit = Obstacle("block", Box((0.2, 0.2, 0.2)), make_pose(position=[0.5, 0.0, 0.3 + 0.1 + 0.1 - 0.03]))
+    exact = ExactChecker(model, [hit])
+    assert not exact.is_free(q)
+    contacts = exact.collisions(q)
+    assert [(a, b) for a, b, _ in contacts] == [("upper", "block")]
+    assert contacts[0][2] == pytest.approx(0.03, abs=1e-6)
+    assert not SphereChecker(model, [hit]).is_free(q)
+    # rotating j1 by 90 degrees moves the sphere away from the block
+    assert exact.is_free(np.array([np.pi / 2, 0.0]))
+
+
+def test_sphere_obstacle_distance_and_both_checkers_agree_on_primitives():
+    model = _arm()
+    ball = Obstacle("ball", Sphere(0.1), make_pose(position=[0.5, 0.35, 0.3]))  # 0.15 from upper's sphere
+    exact = ExactChecker(model, [ball])
+    assert exact.min_distance(np.zeros(2)) == pytest.approx(0.15, abs=1e-6)
+    rng = np.random.default_rng(3)
+    obstacles = [
+        Obstacle("box", Box((0.3, 0.2, 0.4)), make_pose(position=[0.9, -0.6, 0.3])),
+        Obstacle("cyl", Cylinder(0.08, 0.5), make_pose(position=[-0.7, 0.7, 0.3])),
+        Obstacle("cap", Capsule(0.05, 0.4), make_pose(position=[0.2, -1.2, 0.3])),
+        ball,
+    ]
+    q = model.random_configurations(rng, 300)
+    sphere = SphereChecker(model, obstacles).is_free(q)
+    exact = ExactChecker(model, obstacles)
+    truth = exact.is_free(q)
+    assert not np.any(sphere & ~truth)  # never free when the exact check collides
+    assert 0 < truth.sum() < len(q)
+
+
+def test_batched_is_free_matches_single_queries():
+    model = _arm()
+    obstacles = [Obstacle("box", Box((0.3, 0.3, 0.3)), make_pose(position=[0.0, 1.1, 0.3]))]
+    q = model.random_configurations(np.random.default_rng(0), 40).reshape(4, 10, 2)
+    for checker in (ExactChecker(model, obstacles), SphereChecker(model, obstacles)):
+        batch = checker.is_free(q)
+        assert batch.shape == (4, 10)
+        single = np.array([[checker.is_free(q[i, j]) for j in range(10)] for i in range(4)])
+        assert np.array_equal(batch, single)
+    sphere = SphereChecker(model, obstacles)
+    flat = q.reshape(-1, 2)
+    free = sphere.is_free(flat)
+    expected = -1 if free.all() else int(np.argmin(free))
+    assert sphere.first_collision(flat) == expected
+    # an obstacle on the (static) base collides in every configuration
+    on_base = [Obstacle("crate", Box((0.1, 0.1, 0.1)), make_pose(position=[0.0, 0.0, 0.1]))]
+    assert not SphereChecker(model, on_base).is_free(flat).any()
+    assert SphereChecker(model, on_base).first_collision(flat) == 0
+    assert not ExactChecker(model, on_base).is_free(flat[:3]).any()
+
+
+def test_self_collision_respects_acm():
+    model = _arm()
+    q = np.array([0.0, np.pi / 2])  # fore turns to +y and passes through base's post ball
+    unchecked = allowed_collision_matrix(model, srdf=False)
+    assert ExactChecker(model, []).is_free(q)  # base-fore disabled
+    assert SphereChecker(model, []).is_free(q)
+    exact = ExactChecker(model, [], acm=unchecked)
+    assert not exact.is_free(q)
+    assert [(a, b) for a, b, _ in exact.collisions(q)] == [("base", "fore")]
+    assert not SphereChecker(model, [], acm=unchecked).is_free(q)
+    assert exact.is_free(np.zeros(2)) and SphereChecker(model, [], acm=unchecked).is_free(np.zeros(2))

@@ -1,0 +1,150 @@
+"""Sphere models: generated and padded balls cover the collision geometry; disk cache."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from prehensile.collision import spheres as spheres_module
+from prehensile.collision.sphere_fit import geometry_triangles
+from prehensile.collision.spheres import (
+    SphereModel, generate_sphere_model, pad_sphere_model, spheres_from_urdf,
+)
+from prehensile.model import load_urdf
+from prehensile.model.builder import JointSpec, LinkSpec, build_model
+from prehensile.model.geometry import Box, Capsule, Cylinder, Geometry, Mesh, Sphere
+from prehensile.spatial import make_pose, rpy_to_matrix
+
+MBM = Path(__file__).resolve().parents[2] / "shared" / "bench" / "mbm" / "panda"
+needs_mbm = pytest.mark.skipif(not (MBM / "panda.urdf").is_file(), reason="MBM Panda files not found")
+
+
+def _primitive_robot():
+    tilt = make_pose(rpy_to_matrix([0.3, -0.4, 0.2]), [0.05, -0.02, 0.1])
+    links = [
+        LinkSpec("base", collisions=[Geometry(Box((0.4, 0.3, 0.05)), make_pose(position=[0, 0, 0.025]))]),
+        LinkSpec("column", collisions=[Geometry(Cylinder(0.06, 0.5), make_pose(position=[0, 0, 0.25])),
+                                       Geometry(Sphere(0.08), make_pose(position=[0, 0, 0.5]))]),
+        LinkSpec("arm", collisions=[Geometry(Capsule(0.04, 0.3), tilt)]),
+        LinkSpec("plate", collisions=[Geometry(Box((0.02, 0.2, 0.1)), tilt)]),
+        LinkSpec("marker"),
+    ]
+    joints = [
+        JointSpec("j1", "revolute", "base", "column", make_pose(position=[0, 0, 0.05]), np.array([0.0, 0, 1]), -3, 3),
+        JointSpec("j2", "revolute", "column", "arm", make_pose(position=[0, 0, 0.5]), np.array([0.0, 1, 0]), -2, 2),
+        JointSpec("j3", "fixed", "arm", "plate", make_pose(position=[0.2, 0, 0])),
+        JointSpec("j4", "fixed", "plate", "marker", np.eye(4)),
+    ]
+    return build_model("prims", "test", links, joints)
+
+
+def _surface_points(geometry: Geometry, rng: np.random.Generator, n: int = 400) -> np.ndarray:
+    """Points on the true surface of a primitive (not a tessellation), in the link frame."""
+    shape = geometry.shape
+    if isinstance(shape, Box):
+        half = np.asarray(shape.size) / 2
+        p = rng.uniform(-half, half, (n, 3))
+        axis = rng.integers(0, 3, n)
+        p[np.arange(n), axis] = np.where(rng.random(n) < 0.5, -1, 1) * half[axis]
+    elif isinstance(shape, Sphere):
+        d = rng.normal(size=(n, 3))
+        p = shape.radius * d / np.linalg.norm(d, axis=1, keepdims=True)
+    else:
+        a = rng.uniform(0, 2 * np.pi, n)
+        z = rng.uniform(-shape.length / 2, shape.length / 2, n)
+        p = np.column_stack([shape.radius * np.cos(a), shape.radius * np.sin(a), z])
+        if isinstance(shape, Capsule):
+            d = rng.normal(size=(n, 3))
+            cap = shape.radius * d / np.linalg.norm(d, axis=1, keepdims=True)
+            cap[:, 2] += np.sign(cap[:, 2]) * shape.length / 2
+            p = np.vstack([p, cap])
+        else:
+            r = shape.radius * np.sqrt(rng.random(n))
+            disc = np.column_stack([r * np.cos(a), r * np.sin(a), np.where(rng.random(n) < 0.5, -1, 1) * shape.length / 2])
+            p = np.vstack([p, disc])
+    T = np.asarray(geometry.T_link_geom)
+    return p @ T[:3, :3].T + T[:3, 3]
+
+
+def _triangle_samples(triangles: np.ndarray, rng: np.random.Generator, per: int = 12) -> np.ndarray:
+    u, v = rng.random((2, len(triangles), per))
+    flip = u + v > 1
+    u, v = np.where(flip, 1 - u, u), np.where(flip, 1 - v, v)
+    a, b, c = triangles[:, 0, None], triangles[:, 1, None], triangles[:, 2, None]
+    return (a + u[..., None] * (b - a) + v[..., None] * (c - a)).reshape(-1, 3)
+
+
+def _uncovered(points: np.ndarray, centers: np.ndarray, radii: np.ndarray, tol: float = 1e-9) -> int:
+    if len(points) == 0:
+        return 0
+    d = np.linalg.norm(points[:, None, :] - centers[None], axis=-1) - radii[None]
+    return int(np.sum(d.min(axis=1) > tol))
+
+
+def assert_covers(model, spheres: SphereModel, rng) -> None:
+    """Every vertex, sampled triangle point and (for primitives) true surface point of every
+    link lies in one of that link's balls."""
+    for i, geometries in enumerate(model.collisions):
+        centers, radii = spheres.link_spheres(i)
+        for geometry in geometries:
+            triangles = geometry_triangles(geometry)
+            points = [triangles.reshape(-1, 3), _triangle_samples(triangles, rng)]
+            if not isinstance(geometry.shape, Mesh):
+                points.append(_surface_points(geometry, rng))
+            missing = _uncovered(np.concatenate(points), centers, radii)
+            assert missing == 0, f"link {model.link_names[i]}: {missing} points outside its balls"
+
+
+@pytest.fixture(scope="module")
+def panda():
+    return load_urdf(MBM / "panda.urdf", MBM / "panda.srdf")
+
+
+def test_generated_spheres_cover_primitive_robot(tmp_path, monkeypatch):
+    monkeypatch.setenv("PREHENSILE_CACHE", str(tmp_path))
+    model = _primitive_robot()
+    spheres = generate_sphere_model(model, n_spheres=6)
+    assert spheres.link_spheres("marker")[1].size == 0
+    assert all(spheres.link_spheres(n)[1].size > 0 for n in ("base", "column", "arm", "plate"))
+    assert_covers(model, spheres, np.random.default_rng(0))
+
+
+@needs_mbm
+def test_generated_spheres_cover_mbm_panda(panda):
+    spheres = generate_sphere_model(panda)
+    assert 0 < spheres.n_spheres <= 8 * 11
+    assert_covers(panda, spheres, np.random.default_rng(1))
+
+
+@needs_mbm
+def test_padded_mbm_spheres_cover_meshes_and_raw_ones_do_not(panda):
+    raw = spheres_from_urdf(panda, MBM / "panda_spherized.urdf")
+    assert raw.n_spheres == 59
+    rng = np.random.default_rng(2)
+    with pytest.raises(AssertionError):
+        assert_covers(panda, raw, rng)
+    padded = pad_sphere_model(raw, panda)
+    assert padded.n_spheres >= raw.n_spheres
+    assert np.all(padded.radii[: raw.n_spheres] >= 0)
+    assert_covers(panda, padded, rng)
+
+
+def test_cache_round_trip(tmp_path, monkeypatch):
+    monkeypatch.setenv("PREHENSILE_CACHE", str(tmp_path))
+    model = _primitive_robot()
+    first = generate_sphere_model(model, n_spheres=5)
+    files = list((tmp_path / "spheres").glob("*.npz"))
+    assert len(files) == 1 and not list((tmp_path / "spheres").glob("*.tmp"))
+
+    def fail(*args, **kwargs):
+        raise AssertionError("the second call must load from disk, not fit again")
+
+    monkeypatch.setattr(spheres_module, "cover_geometries", fail)
+    second = generate_sphere_model(model, n_spheres=5)
+    for name in ("sphere_link", "centers", "radii"):
+        assert np.array_equal(getattr(first, name), getattr(second, name))
+    assert second.link_names == first.link_names
+    with pytest.raises(AssertionError):  # other parameters: another key, so a new fit
+        generate_sphere_model(model, n_spheres=4)
