@@ -9,8 +9,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from prehensile.collision import ExactChecker
 from prehensile.kinematics.forward import forward_kinematics
-from prehensile.model import Box, Capsule, Cylinder, Sphere, load_urdf
+from prehensile.model import Box, load_urdf
 from prehensile.model.simox import load_simox
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -109,40 +110,10 @@ def test_fk_matches_pinocchio(model, samples):
     np.testing.assert_allclose(theirs, ours, atol=1e-9)
 
 
-def _coal_shape(coal, shape):
-    if isinstance(shape, Box):
-        return coal.Box(*shape.size)
-    if isinstance(shape, Sphere):
-        return coal.Sphere(shape.radius)
-    if isinstance(shape, Cylinder):
-        return coal.Cylinder(shape.radius, shape.length)
-    assert isinstance(shape, Capsule)
-    return coal.Capsule(shape.radius, shape.length)
-
-
 def test_home_configuration_is_collision_free(model):
-    coal = pytest.importorskip("coal")
-    poses = forward_kinematics(model, model.neutral_configuration())
-    objects = {}
-    for i, name in enumerate(model.link_names):
-        objects[name] = []
-        for geometry in model.collisions[i]:
-            T = poses[i] @ geometry.T_link_geom
-            transform = coal.Transform3s(T[:3, :3], T[:3, 3])
-            objects[name].append(coal.CollisionObject(_coal_shape(coal, geometry.shape), transform))
-    links = [n for n in model.link_names if objects[n]]
-    assert {"Platform", "Hip_Yaw", "Head_Tilt", "Upperarm_L", "Underarm_R", "Hand_Palm_1_L", "Index_R_J1"} <= set(links)
-    colliding = []
-    for a, first in enumerate(links):
-        for second in links[a + 1:]:
-            if frozenset((first, second)) in model.disabled_collision_pairs:
-                continue
-            for oa in objects[first]:
-                for ob in objects[second]:
-                    result = coal.CollisionResult()
-                    if coal.collide(oa, ob, coal.CollisionRequest(), result):
-                        colliding.append((first, second))
-    assert colliding == []
+    links = {model.link_names[i] for i, geoms in enumerate(model.collisions) if geoms}
+    assert {"Platform", "Hip_Yaw", "Head_Tilt", "Upperarm_L", "Underarm_R", "Hand_Palm_1_L", "Index_R_J1"} <= links
+    assert ExactChecker(model, []).collisions(model.neutral_configuration()) == []
 
 
 def test_robot_dimensions(model):

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import itertools
 import subprocess
 import sys
 from pathlib import Path
@@ -10,9 +9,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from prehensile.collision import ExactChecker
 from prehensile.kinematics.forward import forward_kinematics
 from prehensile.model import load_urdf
-from prehensile.model.geometry import Box, Cylinder, Sphere
 
 ROOT = Path(__file__).resolve().parents[1]
 NAO_DIR = ROOT / "src" / "prehensile" / "robots" / "nao"
@@ -148,39 +147,11 @@ def test_pinocchio_agrees_on_all_links(nao):
             np.testing.assert_allclose(ours[k, i], pdata.oMf[f].homogeneous, atol=1e-9)
 
 
-def _coal_shape(coal, shape):
-    if isinstance(shape, Box):
-        return coal.Box(*shape.size)
-    if isinstance(shape, Sphere):
-        return coal.Sphere(shape.radius)
-    if isinstance(shape, Cylinder):
-        return coal.Cylinder(shape.radius, shape.length)
-    raise AssertionError(f"unexpected shape {shape}")
-
-
-def _colliding_pairs(model, q):
-    coal = pytest.importorskip("coal")
-    poses = forward_kinematics(model, q)
-    objects = []
-    for i, geoms in enumerate(model.collisions):
-        for g in geoms:
-            T = poses[i] @ g.T_link_geom
-            objects.append((model.link_names[i], _coal_shape(coal, g.shape), coal.Transform3s(T[:3, :3], T[:3, 3])))
-    hits = set()
-    for (a, sa, ta), (b, sb, tb) in itertools.combinations(objects, 2):
-        if a == b or frozenset((a, b)) in model.disabled_collision_pairs:
-            continue
-        result = coal.CollisionResult()
-        if coal.collide(sa, ta, sb, tb, coal.CollisionRequest(), result) > 0:
-            hits.add(tuple(sorted((a, b))))
-    return hits
-
-
 def test_no_self_collision_at_rest(nao):
-    assert _colliding_pairs(nao, np.zeros(nao.dof)) == set()
-    assert _colliding_pairs(nao, nao.neutral_configuration()) == set()
+    checker = ExactChecker(nao, [])
     open_hands = nao.configuration_from_dict({"LHand": 1.0, "RHand": 1.0})
-    assert _colliding_pairs(nao, open_hands) == set()
+    for q in (np.zeros(nao.dof), nao.neutral_configuration(), open_hands):
+        assert checker.collisions(q) == []
 
 
 def test_size_like_the_real_robot(nao):

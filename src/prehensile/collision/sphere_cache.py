@@ -12,15 +12,19 @@ from __future__ import annotations
 import hashlib
 import json
 import logging
+import io
 import os
-import tempfile
 from pathlib import Path
-from typing import Callable
+from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 
 from prehensile.model.geometry import Mesh
 from prehensile.model.robot_model import RobotModel
+from prehensile.storage import atomic_write_bytes
+
+if TYPE_CHECKING:
+    from prehensile.collision.spheres import SphereModel
 
 FORMAT_VERSION = 2  # bump whenever the fitting algorithm changes
 log = logging.getLogger(__name__)
@@ -76,20 +80,13 @@ def cache_key(model: RobotModel, params: dict) -> str:
 
 
 def save_atomic(path: Path, arrays: dict[str, np.ndarray]) -> None:
-    """Write ``arrays`` to ``path`` (.npz) through a temporary file and :func:`os.replace`."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=path.stem, suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            np.savez(f, **arrays)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    """Write ``arrays`` to ``path`` (.npz) atomically."""
+    buffer = io.BytesIO()
+    np.savez(buffer, **arrays)
+    atomic_write_bytes(path, buffer.getvalue())
 
 
-def cached(model: RobotModel, params: dict, build: Callable[[], "SphereModel"]) -> "SphereModel":  # noqa: F821
+def cached(model: RobotModel, params: dict, build: Callable[[], SphereModel]) -> SphereModel:
     """The sphere model for (``model``, ``params``) from the cache, or ``build()`` and store it.
 
     An unreadable cache entry is rebuilt and overwritten; an unwritable cache folder only

@@ -15,7 +15,7 @@ import numpy as np
 
 from prehensile.errors import ModelError
 from prehensile.model.geometry import Geometry
-from prehensile.model.robot_model import FIXED, PRISMATIC, REVOLUTE, Chain, EndEffector, RobotModel
+from prehensile.model.robot_model import PRISMATIC, REVOLUTE, Chain, EndEffector, RobotModel
 
 JOINT_TYPES = ("revolute", "continuous", "prismatic", "fixed", "planar")
 

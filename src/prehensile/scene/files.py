@@ -31,7 +31,6 @@ of the wrong length, non-unit quaternions, NaN, and zero or negative sizes.
 from __future__ import annotations
 
 import os
-import tempfile
 from pathlib import Path
 from typing import Any, Mapping
 
@@ -41,6 +40,7 @@ import yaml
 from prehensile.errors import PrehensileError, SceneError
 from prehensile.model.robot_model import RobotModel
 from prehensile.scene.scene import Body, PlacedRobot, Scene
+from prehensile.storage import atomic_write_text
 from prehensile.scene.schema import (
     check_keys, number, read_pose, read_shape, relative_path, write_pose, write_shape,
 )
@@ -108,16 +108,7 @@ def save_scene(scene: Scene, path: str | os.PathLike) -> None:
         SceneError: a robot has no reference (bundled name or model file) to write.
     """
     path = Path(path)
-    text = yaml.dump(scene_to_dict(scene, path.parent), Dumper=_FlowListDumper, sort_keys=False)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    handle, temp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(handle, "w", encoding="utf-8") as stream:
-            stream.write(text)
-        os.replace(temp, path)
-    except BaseException:
-        Path(temp).unlink(missing_ok=True)
-        raise
+    atomic_write_text(path, yaml.dump(scene_to_dict(scene, path.parent), Dumper=_FlowListDumper, sort_keys=False))
 
 
 def scene_to_dict(scene: Scene, base_dir: Path) -> dict:
