@@ -46,7 +46,7 @@ def bench_robot(name: str, rng: np.random.Generator) -> dict:
     model = robots.load(name)
     pin_model, pin_data = pinocchio_for(model)
     tip = model.link_names[max(range(model.n_links), key=lambda i: len(model.path_to_root(i)))]
-    frame_id = pin_model.getFrameId(tip)
+    frame_id = pin_model.getFrameId(tip, pin.BODY)
     rows = {}
     for batch in BATCHES:
         q = model.random_configurations(rng, batch)
