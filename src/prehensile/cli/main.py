@@ -13,45 +13,19 @@ with code 2; ``check`` exits 0 when the scene is collision-free and 1 when somet
 
 from __future__ import annotations
 
-import functools
 import json
-import sys
 from pathlib import Path
 from typing import List, Optional
 
 import typer
-from rich.console import Console
 from rich.table import Table
 
 from prehensile.cli import robot as robot_cmd
+from prehensile.cli.app import EXIT_COLLIDING, EXIT_FREE, app, console, echo_json, handles_errors
 from prehensile.errors import PrehensileError
 
-app = typer.Typer(name="prehensile", help="Robots that reach, grasp and place.", no_args_is_help=True,
-                  add_completion=False, pretty_exceptions_enable=False)
 robot_app = typer.Typer(help="Inspect robot models.", no_args_is_help=True)
 app.add_typer(robot_app, name="robot")
-console = Console(highlight=False, width=None if sys.stdout.isatty() else 120)
-err_console = Console(stderr=True, highlight=False)
-
-EXIT_FREE, EXIT_COLLIDING, EXIT_BAD_INPUT = 0, 1, 2
-
-
-def handles_errors(command):
-    """Turn a PrehensileError into one red line on stderr and exit code 2."""
-
-    @functools.wraps(command)
-    def wrapper(*args, **kwargs):
-        try:
-            return command(*args, **kwargs)
-        except PrehensileError as err:
-            err_console.print(f"[bold red]error:[/] [red]{err}[/]", soft_wrap=True, markup=True)
-            raise typer.Exit(EXIT_BAD_INPUT) from None
-
-    return wrapper
-
-
-def _echo_json(data) -> None:
-    typer.echo(json.dumps(data, indent=2))
 
 
 def _fmt(value: float | None, digits: int = 4) -> str:
@@ -67,7 +41,7 @@ def robot_info(
     """Degrees of freedom, joints and limits, chains, end effectors and preshapes."""
     info = robot_cmd.robot_info(robot_cmd.load_robot(robot))
     if as_json:
-        _echo_json(info)
+        echo_json(info)
         return
     console.print(f"[bold]{info['name']}[/]  ({info['source']})")
     console.print(f"dof: {info['dof']}   links: {info['n_links']}   root: {info['root_link']}")
@@ -117,7 +91,7 @@ def fk(
     model = robot_cmd.load_robot(robot)
     result = robot_cmd.link_poses(model, robot_cmd.parse_q(model, values), link)
     if as_json:
-        _echo_json(result)
+        echo_json(result)
         return
     table = Table("link", "x (m)", "y (m)", "z (m)", "roll (rad)", "pitch (rad)", "yaw (rad)",
                   title=f"{model.name} at q = [{', '.join(f'{v:.4g}' for v in result['q'])}]")
@@ -142,7 +116,7 @@ def check(
     loaded = load_scene(scene)
     result = check_scene(loaded, "exact" if exact else "spheres")
     if as_json:
-        _echo_json({"scene": str(scene), **result.to_dict()})
+        echo_json({"scene": str(scene), **result.to_dict()})
     else:
         print_check(loaded.source, result)
     raise typer.Exit(EXIT_FREE if result.free else EXIT_COLLIDING)
@@ -192,3 +166,6 @@ def demo(
 
 if __name__ == "__main__":  # pragma: no cover
     app()
+
+
+# command modules register themselves on `app` / `bench_app` when imported

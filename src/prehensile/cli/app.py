@@ -1,0 +1,39 @@
+"""The typer application, its consoles and the error handling shared by every command module."""
+
+from __future__ import annotations
+
+import functools
+import json
+import sys
+
+import typer
+from rich.console import Console
+
+from prehensile.errors import PrehensileError
+
+app = typer.Typer(name="prehensile", help="Robots that reach, grasp and place.", no_args_is_help=True,
+                  add_completion=False, pretty_exceptions_enable=False)
+bench_app = typer.Typer(help="Benchmarks against peer libraries (JSON + table).", no_args_is_help=True)
+app.add_typer(bench_app, name="bench")
+console = Console(highlight=False, width=None if sys.stdout.isatty() else 120)
+err_console = Console(stderr=True, highlight=False)
+
+EXIT_FREE, EXIT_COLLIDING, EXIT_BAD_INPUT = 0, 1, 2
+
+
+def handles_errors(command):
+    """Turn a PrehensileError into one red line on stderr and exit code 2."""
+
+    @functools.wraps(command)
+    def wrapper(*args, **kwargs):
+        try:
+            return command(*args, **kwargs)
+        except PrehensileError as err:
+            err_console.print(f"[bold red]error:[/] [red]{err}[/]", soft_wrap=True, markup=True)
+            raise typer.Exit(EXIT_BAD_INPUT) from None
+
+    return wrapper
+
+
+def echo_json(data) -> None:
+    typer.echo(json.dumps(data, indent=2))

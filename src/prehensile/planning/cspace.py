@@ -1,0 +1,140 @@
+"""Configuration space of the planned joints with the workspace-weighted metric.
+
+Vahrenkamp 2011, appendix B.1/B.2: joint i gets the weight w_i, the largest distance any
+point of the robot's surface can move per unit motion of that joint (m/rad for revolute,
+m/m for prismatic joints). The distance ``d_WS(a, b) = sum_i w_i |a_i - b_i|`` then bounds
+how far any surface point moves on the straight segment from a to b, so checking a segment
+at configurations spaced ``resolution`` apart in ``d_WS`` guarantees that no surface point
+moves more than ``resolution`` metres between two checks.
+
+The weights here are computed from the geometry, not read from a table: for a revolute joint
+the bound is the largest distance from the joint's origin to any ball of the sphere model on
+a link it moves, summing the fixed link offsets on the tree path (triangle inequality), so it
+holds for every configuration of the joints further out.
+"""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+import numpy as np
+
+from prehensile.errors import PrehensileError
+from prehensile.model.robot_model import PRISMATIC, REVOLUTE, RobotModel
+
+
+def joint_weights(model: RobotModel, centers: np.ndarray, radii: np.ndarray) -> np.ndarray:
+    """Worst-case surface displacement per unit motion of every variable, shape (dof,).
+
+    Args:
+        centers: (L, 3) centre of a ball enclosing link i's geometry, in link i's frame (m).
+        radii: (L,) radius of that ball (m); negative for links without geometry.
+    """
+    n = model.n_links
+    # reach[j, d]: bound on |p - origin_j| for points p of link d moved by joint j
+    children = [[] for _ in range(n)]
+    for i in range(n):
+        if model.link_parent[i] >= 0:
+            children[model.link_parent[i]].append(i)
+    travel = np.zeros(n)  # how far a prismatic joint can shift its child
+    prismatic = model.joint_type == PRISMATIC
+    for i in np.flatnonzero(prismatic):
+        qi = model.joint_q_index[i]
+        lo, hi = model.lower[qi], model.upper[qi]
+        travel[i] = abs(model.joint_multiplier[i]) * max(abs(lo), abs(hi)) + abs(model.joint_offset[i])
+    weights = np.zeros(model.dof)
+    for j in range(n):
+        if model.joint_type[j] not in (REVOLUTE, PRISMATIC):
+            continue
+        bound = 0.0
+        stack = [(j, 0.0)]  # (link, bound on the distance from joint j's origin to link's origin)
+        while stack:
+            link, offset = stack.pop()
+            if radii[link] >= 0:
+                bound = max(bound, offset + np.linalg.norm(centers[link]) + radii[link])
+            for child in children[link]:
+                stack.append((child, offset + np.linalg.norm(model.joint_origin[child][:3, 3]) + travel[child]))
+        per_unit = bound if model.joint_type[j] == REVOLUTE else 1.0
+        weights[model.joint_q_index[j]] += abs(model.joint_multiplier[j]) * per_unit
+    return weights
+
+
+class ConfigurationSpace:
+    """The planned joints (a subset of the model's variables), their limits and metric.
+
+    Planners work on "active" vectors (n,) of the planned joints; :meth:`full` expands them
+    into model configurations (dof,) with the other joints at ``q_ref``.
+
+    Args:
+        model: the robot.
+        joints: joint names, or the name of a chain of the model; all variables if None.
+        q_ref: (dof,) values of the joints not planned (rad or m); neutral if None.
+        centers, radii: per-link bounding balls for the weights (see :func:`joint_weights`),
+            e.g. from :meth:`prehensile.collision.SphereModel.link_bounds`.
+        weights: (n,) explicit weights overriding the computed ones (m per unit).
+    """
+
+    def __init__(self, model: RobotModel, joints: Sequence[str] | str | None = None, q_ref: np.ndarray | None = None,
+                 centers: np.ndarray | None = None, radii: np.ndarray | None = None,
+                 weights: np.ndarray | None = None) -> None:
+        self.model = model
+        if joints is None:
+            indices = np.arange(model.dof)
+        elif isinstance(joints, str):
+            indices = model.chain_q_indices(joints)
+        else:
+            indices = np.array([model.joint_index(j) for j in joints], dtype=np.int64)
+        if len(indices) == 0 or len(set(indices.tolist())) != len(indices):
+            raise PrehensileError(f"ConfigurationSpace: joints must be non-empty and distinct, got {joints!r}")
+        self.indices = np.ascontiguousarray(indices, dtype=np.int64)
+        self.q_ref = model.neutral_configuration() if q_ref is None else model.check_configuration(q_ref, "q_ref").copy()
+        self.lower = np.where(np.isfinite(model.lower[self.indices]), model.lower[self.indices], -np.pi)
+        self.upper = np.where(np.isfinite(model.upper[self.indices]), model.upper[self.indices], np.pi)
+        if weights is None:
+            if centers is None or radii is None:
+                raise PrehensileError("ConfigurationSpace: give either weights or the link balls (centers, radii)")
+            weights = joint_weights(model, np.asarray(centers, float), np.asarray(radii, float))[self.indices]
+        weights = np.asarray(weights, dtype=float)
+        if weights.shape != self.indices.shape or np.any(weights <= 0) or not np.all(np.isfinite(weights)):
+            raise PrehensileError(f"ConfigurationSpace: weights must be {len(self.indices)} positive numbers, got {weights}")
+        self.weights = np.ascontiguousarray(weights)
+
+    @property
+    def n(self) -> int:
+        """Number of planned joints."""
+        return len(self.indices)
+
+    @property
+    def joint_names(self) -> tuple[str, ...]:
+        return tuple(self.model.joint_names[i] for i in self.indices)
+
+    def active(self, q: np.ndarray) -> np.ndarray:
+        """(*batch, n) planned-joint values of full configurations q (*batch, dof)."""
+        return self.model.check_configuration(q)[..., self.indices]
+
+    def full(self, qa: np.ndarray) -> np.ndarray:
+        """(*batch, dof) full configurations: ``q_ref`` with the planned joints set to qa (*batch, n)."""
+        qa = np.asarray(qa, dtype=float)
+        out = np.broadcast_to(self.q_ref, qa.shape[:-1] + (self.model.dof,)).copy()
+        out[..., self.indices] = qa
+        return out
+
+    def distance(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """Workspace-bounded distance (m) between active vectors a, b (*batch, n)."""
+        return np.sum(self.weights * np.abs(np.asarray(b, float) - np.asarray(a, float)), axis=-1)
+
+    def within_limits(self, qa: np.ndarray, tol: float = 1e-9) -> np.ndarray:
+        """(*batch,) bool: active vectors qa (*batch, n) within the limits."""
+        return np.all((qa >= self.lower - tol) & (qa <= self.upper + tol), axis=-1)
+
+    def interpolate(self, a: np.ndarray, b: np.ndarray, resolution: float) -> np.ndarray:
+        """Configurations on the segment a -> b (n,), both ends included, spaced at most
+        ``resolution`` (m) apart in the workspace-weighted distance; shape (k, n), k >= 2."""
+        steps = max(int(np.ceil(float(self.distance(a, b)) / resolution)), 1)
+        t = np.linspace(0.0, 1.0, steps + 1)[:, None]
+        return (1.0 - t) * np.asarray(a, float) + t * np.asarray(b, float)
+
+    def path_length(self, path: np.ndarray) -> float:
+        """Workspace-weighted length (m) of a path of active vectors (N, n)."""
+        path = np.asarray(path, float)
+        return float(np.sum(self.distance(path[:-1], path[1:]))) if len(path) > 1 else 0.0

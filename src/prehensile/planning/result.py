@@ -1,0 +1,72 @@
+"""Planner results: status, path and statistics (frozen dataclasses)."""
+
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+class PlanStatus(enum.Enum):
+    """Outcome of a planning query. Only ``SUCCESS`` carries a path."""
+
+    SUCCESS = "success"
+    TIMEOUT = "timeout"                        # budget spent without a path
+    INVALID_START = "invalid_start"            # start outside the limits or in collision
+    INVALID_GOAL = "invalid_goal"              # goal configuration outside the limits or in collision
+    NO_GOAL_CONFIGURATION = "no_goal_configuration"  # IK found no valid goal configuration in the budget
+    CERTIFICATION_FAILED = "certification_failed"    # the exact check rejected every path found
+
+
+@dataclass(frozen=True)
+class PlanStats:
+    """Counters and timings of one planning query.
+
+    Attributes:
+        iterations: planner iterations (samples drawn).
+        nodes: configurations in all trees at the end.
+        collision_checks: configurations pushed through the sphere checker.
+        ik_solutions: goal configurations found by IK (IK-based planners).
+        plan_time_s: search time (s).
+        simplify_time_s: shortcutting / smoothing time (s).
+        certify_time_s: exact-model certification time (s).
+    """
+
+    iterations: int = 0
+    nodes: int = 0
+    collision_checks: int = 0
+    ik_solutions: int = 0
+    plan_time_s: float = 0.0
+    simplify_time_s: float = 0.0
+    certify_time_s: float = 0.0
+
+    @property
+    def total_time_s(self) -> float:
+        return self.plan_time_s + self.simplify_time_s + self.certify_time_s
+
+
+@dataclass(frozen=True)
+class PlanResult:
+    """A planner's answer.
+
+    Attributes:
+        status: see :class:`PlanStatus`.
+        path: (N, dof) full-model waypoints (rad or m) from start to goal, straight segments
+            between them; (0, dof) unless ``status`` is SUCCESS.
+        stats: :class:`PlanStats`.
+        goal_index: which goal of a goal set was reached (grasp / pose index), -1 if none.
+        end_effector: the hand that grasps (Multi-EEF planners), "" otherwise.
+        info: planner-specific extras (e.g. the grasp pair of a bimanual plan).
+    """
+
+    status: PlanStatus
+    path: np.ndarray
+    stats: PlanStats
+    goal_index: int = -1
+    end_effector: str = ""
+    info: dict = field(default_factory=dict)
+
+    @property
+    def success(self) -> bool:
+        return self.status is PlanStatus.SUCCESS
