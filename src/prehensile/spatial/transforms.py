@@ -8,6 +8,7 @@ Conventions: ``T_a_b`` is the pose of frame b in frame a, a float64 array of sha
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 from prehensile.errors import PrehensileError
 
@@ -122,16 +123,41 @@ def rotation_error(R_target: np.ndarray, R_current: np.ndarray) -> np.ndarray:
     return result
 
 
+@njit(cache=True)
+def _pose_defect(T, atol):
+    """0 if every pose of T (N, 4, 4) is rigid; else 1 (not finite), 2 (not a rotation) or
+    3 (bad last row)."""
+    for k in range(T.shape[0]):
+        for r in range(4):
+            for c in range(4):
+                if not np.isfinite(T[k, r, c]):
+                    return 1
+    for k in range(T.shape[0]):
+        for i in range(3):
+            for j in range(3):
+                dot = T[k, i, 0] * T[k, j, 0] + T[k, i, 1] * T[k, j, 1] + T[k, i, 2] * T[k, j, 2]
+                if abs(dot - (1.0 if i == j else 0.0)) > atol:
+                    return 2
+        det = (T[k, 0, 0] * (T[k, 1, 1] * T[k, 2, 2] - T[k, 1, 2] * T[k, 2, 1])
+               - T[k, 0, 1] * (T[k, 1, 0] * T[k, 2, 2] - T[k, 1, 2] * T[k, 2, 0])
+               + T[k, 0, 2] * (T[k, 1, 0] * T[k, 2, 1] - T[k, 1, 1] * T[k, 2, 0]))
+        if det < 0.0:
+            return 2
+        if abs(T[k, 3, 0]) > atol or abs(T[k, 3, 1]) > atol or abs(T[k, 3, 2]) > atol or abs(T[k, 3, 3] - 1.0) > atol:
+            return 3
+    return 0
+
+
 def check_pose(T: np.ndarray, what: str = "pose", atol: float = 1e-6) -> np.ndarray:
     """Validate rigid transform(s) (..., 4, 4); raise a clear error on NaN or a non-rotation."""
     T = np.asarray(T, dtype=float)
-    if T.shape[-2:] != (4, 4):
+    if T.ndim < 2 or T.shape[-2:] != (4, 4):
         raise PrehensileError(f"{what}: expected shape (..., 4, 4), got {T.shape}")
-    if not np.all(np.isfinite(T)):
+    defect = _pose_defect(np.ascontiguousarray(T.reshape(-1, 4, 4)), atol)
+    if defect == 1:
         raise PrehensileError(f"{what}: contains NaN or infinite values")
-    R = T[..., :3, :3]
-    if not np.allclose(R @ np.swapaxes(R, -1, -2), np.eye(3), atol=atol) or np.any(np.linalg.det(R) < 0):
+    if defect == 2:
         raise PrehensileError(f"{what}: upper-left 3x3 block is not a rotation matrix")
-    if not np.allclose(T[..., 3, :], [0.0, 0.0, 0.0, 1.0], atol=atol):
+    if defect == 3:
         raise PrehensileError(f"{what}: last row must be [0, 0, 0, 1]")
     return T

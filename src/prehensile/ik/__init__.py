@@ -1,0 +1,8 @@
+"""Inverse kinematics: Jacobian solvers, random-restart complete IK, analytic NAO arms, FABRIK."""
+
+from prehensile.ik.complete import CompleteIKSettings, collision_filter, solve_ik_complete
+from prehensile.ik.jacobian import METHODS, ChainSolver, JacobianIKSettings, solve_ik
+from prehensile.ik.result import IKResult, IKStatus
+
+__all__ = ["METHODS", "ChainSolver", "CompleteIKSettings", "IKResult", "IKStatus", "JacobianIKSettings",
+           "collision_filter", "solve_ik", "solve_ik_complete"]

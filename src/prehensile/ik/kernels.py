@@ -1,0 +1,297 @@
+"""Compiled (numba) kernels of the Jacobian IK solvers.
+
+A chain is packed as the links on the path from the model root to the tip (parents first):
+``table`` (P, 20) holds those rows of the model's ``joint_table`` (columns: 0 parent, unused
+here, 1 joint type, 2 q index, 3 multiplier, 4 offset, 5-7 axis, 8-19 the top three rows of
+the joint origin). ``var_of_q`` (dof,) maps a q index to its column in the chain Jacobian, or
+-1 for joints held at the seed's value. Every kernel works on full configurations (dof,).
+
+The task error stacks position (m) over rotation (rad, rotation vector of
+``R_target R_current^T``, world axes); ``rows`` selects and ``row_weight`` scales the
+rows that take part (three for position-only targets).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from prehensile.kinematics.kernels import FAST, PRISMATIC, REVOLUTE
+
+TRANSPOSE, PSEUDOINVERSE, DAMPED = 0, 1, 2
+# solver outcomes
+CONVERGED, ITERATION_CAP, STALLED = 0, 1, 2
+
+
+@njit(cache=True, fastmath=FAST)
+def chain_pose_jacobian(q, T_world_root, table, var_of_q, T_tip_tcp, frames, pose, jac):
+    """Tool pose ``pose`` (4, 4) and world-axes Jacobian ``jac`` (6, n) of the chain at q (dof,).
+
+    ``frames`` (P, 3, 4) is scratch space: the world pose of every link on the path.
+    """
+    P = table.shape[0]
+    for i in range(P):
+        jtype = int(table[i, 1])
+        o00, o01, o02, o03 = table[i, 8], table[i, 9], table[i, 10], table[i, 11]
+        o10, o11, o12, o13 = table[i, 12], table[i, 13], table[i, 14], table[i, 15]
+        o20, o21, o22, o23 = table[i, 16], table[i, 17], table[i, 18], table[i, 19]
+        if jtype == REVOLUTE:
+            value = table[i, 3] * q[int(table[i, 2])] + table[i, 4]
+            x, y, z = table[i, 5], table[i, 6], table[i, 7]
+            c, s = np.cos(value), np.sin(value)
+            t = 1.0 - c
+            m00, m01, m02 = t * x * x + c, t * x * y - s * z, t * x * z + s * y
+            m10, m11, m12 = t * x * y + s * z, t * y * y + c, t * y * z - s * x
+            m20, m21, m22 = t * x * z - s * y, t * y * z + s * x, t * z * z + c
+            o00, o01, o02 = o00 * m00 + o01 * m10 + o02 * m20, o00 * m01 + o01 * m11 + o02 * m21, o00 * m02 + o01 * m12 + o02 * m22
+            o10, o11, o12 = o10 * m00 + o11 * m10 + o12 * m20, o10 * m01 + o11 * m11 + o12 * m21, o10 * m02 + o11 * m12 + o12 * m22
+            o20, o21, o22 = o20 * m00 + o21 * m10 + o22 * m20, o20 * m01 + o21 * m11 + o22 * m21, o20 * m02 + o21 * m12 + o22 * m22
+        elif jtype == PRISMATIC:
+            value = table[i, 3] * q[int(table[i, 2])] + table[i, 4]
+            x, y, z = table[i, 5], table[i, 6], table[i, 7]
+            o03 += value * (o00 * x + o01 * y + o02 * z)
+            o13 += value * (o10 * x + o11 * y + o12 * z)
+            o23 += value * (o20 * x + o21 * y + o22 * z)
+        for r in range(3):
+            if i == 0:
+                b0, b1, b2, b3 = T_world_root[r, 0], T_world_root[r, 1], T_world_root[r, 2], T_world_root[r, 3]
+            else:
+                b0, b1, b2, b3 = frames[i - 1, r, 0], frames[i - 1, r, 1], frames[i - 1, r, 2], frames[i - 1, r, 3]
+            frames[i, r, 0] = b0 * o00 + b1 * o10 + b2 * o20
+            frames[i, r, 1] = b0 * o01 + b1 * o11 + b2 * o21
+            frames[i, r, 2] = b0 * o02 + b1 * o12 + b2 * o22
+            frames[i, r, 3] = b0 * o03 + b1 * o13 + b2 * o23 + b3
+    for r in range(3):
+        for c in range(4):
+            pose[r, c] = (frames[P - 1, r, 0] * T_tip_tcp[0, c] + frames[P - 1, r, 1] * T_tip_tcp[1, c]
+                          + frames[P - 1, r, 2] * T_tip_tcp[2, c])
+        pose[r, 3] += frames[P - 1, r, 3]
+    pose[3, 0], pose[3, 1], pose[3, 2], pose[3, 3] = 0.0, 0.0, 0.0, 1.0
+    jac[:, :] = 0.0
+    px, py, pz = pose[0, 3], pose[1, 3], pose[2, 3]
+    for i in range(P):
+        jtype = int(table[i, 1])
+        if jtype != REVOLUTE and jtype != PRISMATIC:
+            continue
+        c = var_of_q[int(table[i, 2])]
+        if c < 0:
+            continue
+        m, ax, ay, az = table[i, 3], table[i, 5], table[i, 6], table[i, 7]
+        wx = m * (frames[i, 0, 0] * ax + frames[i, 0, 1] * ay + frames[i, 0, 2] * az)
+        wy = m * (frames[i, 1, 0] * ax + frames[i, 1, 1] * ay + frames[i, 1, 2] * az)
+        wz = m * (frames[i, 2, 0] * ax + frames[i, 2, 1] * ay + frames[i, 2, 2] * az)
+        if jtype == REVOLUTE:
+            dx, dy, dz = px - frames[i, 0, 3], py - frames[i, 1, 3], pz - frames[i, 2, 3]
+            jac[0, c] += wy * dz - wz * dy
+            jac[1, c] += wz * dx - wx * dz
+            jac[2, c] += wx * dy - wy * dx
+            jac[3, c] += wx
+            jac[4, c] += wy
+            jac[5, c] += wz
+        else:
+            jac[0, c] += wx
+            jac[1, c] += wy
+            jac[2, c] += wz
+
+
+@njit(cache=True, fastmath=FAST)
+def pose_error(target, pose, err):
+    """err (6,) = [target position - position (m), rotation vector of R_t R^T (rad)]."""
+    for r in range(3):
+        err[r] = target[r, 3] - pose[r, 3]
+    R = target[:3, :3] @ pose[:3, :3].T
+    cos_angle = min(max(0.5 * (R[0, 0] + R[1, 1] + R[2, 2] - 1.0), -1.0), 1.0)
+    angle = np.arccos(cos_angle)
+    vx, vy, vz = R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]
+    sin_angle = np.sin(angle)
+    if sin_angle > 1e-7:
+        k = angle / (2.0 * sin_angle)
+        err[3], err[4], err[5] = k * vx, k * vy, k * vz
+    elif angle < 1.0:  # near zero: first order
+        err[3], err[4], err[5] = 0.5 * vx, 0.5 * vy, 0.5 * vz
+    else:  # near pi: axis from the diagonal of R = 2 a a^T - I
+        ax = np.sqrt(max(0.5 * (R[0, 0] + 1.0), 0.0))
+        ay = np.sqrt(max(0.5 * (R[1, 1] + 1.0), 0.0))
+        az = np.sqrt(max(0.5 * (R[2, 2] + 1.0), 0.0))
+        if ax >= ay and ax >= az:
+            ay, az = np.copysign(ay, R[0, 1]), np.copysign(az, R[0, 2])
+        elif ay >= az:
+            ax, az = np.copysign(ax, R[0, 1]), np.copysign(az, R[1, 2])
+        else:
+            ax, ay = np.copysign(ax, R[0, 2]), np.copysign(ay, R[1, 2])
+        norm = np.sqrt(ax * ax + ay * ay + az * az)
+        err[3], err[4], err[5] = angle * ax / norm, angle * ay / norm, angle * az / norm
+
+
+@njit(cache=True, fastmath=FAST)
+def _solve_spd(A, b, x):
+    """x (m,) with A x = b for a symmetric positive definite A (m, m), by an in-place Cholesky
+    factorization (A is overwritten)."""
+    m = A.shape[0]
+    for i in range(m):
+        for j in range(i + 1):
+            s = A[i, j]
+            for k in range(j):
+                s -= A[i, k] * A[j, k]
+            A[i, j] = np.sqrt(max(s, 1e-300)) if i == j else s / A[j, j]
+    for i in range(m):
+        s = b[i]
+        for k in range(i):
+            s -= A[i, k] * x[k]
+        x[i] = s / A[i, i]
+    for i in range(m - 1, -1, -1):
+        s = x[i]
+        for k in range(i + 1, m):
+            s -= A[k, i] * x[k]
+        x[i] = s / A[i, i]
+
+
+@njit(cache=True, fastmath=FAST)
+def _step(method, Jw, ew, damping, A, x, dq):
+    """Joint step dq (n,) for the weighted task Jacobian Jw (m, n) and error ew (m,).
+
+    ``A`` (m, m) and ``x`` (m,) are scratch space.
+    """
+    m, n = Jw.shape
+    if method == PSEUDOINVERSE:
+        dq[:] = np.linalg.pinv(Jw, rcond=1e-10) @ ew
+        return
+    for i in range(m):  # A = J J^T
+        for j in range(i + 1):
+            s = 0.0
+            for c in range(n):
+                s += Jw[i, c] * Jw[j, c]
+            A[i, j] = s
+            A[j, i] = s
+    if method == TRANSPOSE:  # Buss 2004: alpha = <e, J J^T e> / <J J^T e, J J^T e>
+        num, den = 0.0, 0.0
+        for i in range(m):
+            s = 0.0
+            for j in range(m):
+                s += A[i, j] * ew[j]
+            num += ew[i] * s
+            den += s * s
+        alpha = num / den if den > 0.0 else 0.0
+        for i in range(m):
+            x[i] = alpha * ew[i]
+    else:
+        # damped least squares, damping grown with the error (Sugihara 2011):
+        # dq = J^T (J J^T + lambda^2 I)^-1 e with lambda^2 = |e|^2 + damping^2
+        lam2 = damping * damping
+        for i in range(m):
+            lam2 += ew[i] * ew[i]
+        for i in range(m):
+            A[i, i] += lam2
+        _solve_spd(A, ew, x)
+    for c in range(n):
+        s = 0.0
+        for i in range(m):
+            s += Jw[i, c] * x[i]
+        dq[c] = s
+
+
+@njit(cache=True, fastmath=FAST)
+def solve(q, targets, target_index, T_world_root, table, var_of_q, var_q, T_tip_tcp, lower, upper,
+          rows, row_weight, tol_pos, tol_rot, max_iterations, method, max_step_pos, max_step_rot,
+          damping, gain, stall_iterations):
+    """Move q (dof,) in place toward ``targets[target_index]`` (4, 4).
+
+    ``var_q`` (n,) the q index of each Jacobian column; ``lower``/``upper`` (n,) their limits
+    (the step is clamped into them). The Cartesian error is clamped to ``max_step_pos`` (m) and
+    ``max_step_rot`` (rad) before each step (Vahrenkamp's LimitCartesianStepSize).
+
+    Returns:
+        (outcome, iterations, position error (m), rotation error (rad)) of the final q.
+    """
+    n = var_q.shape[0]
+    target = targets[target_index]
+    pose = np.empty((4, 4))
+    jac = np.empty((6, n))
+    frames = np.empty((table.shape[0], 3, 4))
+    err = np.empty(6)
+    m = rows.shape[0]
+    Jw = np.empty((m, n))
+    ew = np.empty(m)
+    A = np.empty((m, m))
+    x = np.empty(m)
+    dq = np.empty(n)
+    best = np.inf
+    since_best = 0
+    check_rot = False
+    for r in rows:
+        if r >= 3:
+            check_rot = True
+    it = 0
+    while True:
+        chain_pose_jacobian(q, T_world_root, table, var_of_q, T_tip_tcp, frames, pose, jac)
+        pose_error(target, pose, err)
+        pos_err = np.sqrt(err[0] ** 2 + err[1] ** 2 + err[2] ** 2)
+        rot_err = np.sqrt(err[3] ** 2 + err[4] ** 2 + err[5] ** 2) if check_rot else 0.0
+        if pos_err <= tol_pos and rot_err <= tol_rot:
+            return CONVERGED, it, pos_err, rot_err
+        if it >= max_iterations:
+            return ITERATION_CAP, it, pos_err, rot_err
+        score = pos_err / tol_pos + rot_err / tol_rot
+        if score < 0.999 * best:
+            best, since_best = score, 0
+        else:
+            since_best += 1
+            if since_best >= stall_iterations:
+                return STALLED, it, pos_err, rot_err
+        if pos_err > max_step_pos:
+            for r in range(3):
+                err[r] *= max_step_pos / pos_err
+        if rot_err > max_step_rot:
+            for r in range(3, 6):
+                err[r] *= max_step_rot / rot_err
+        for k in range(m):
+            ew[k] = row_weight[k] * err[rows[k]]
+            for c in range(n):
+                Jw[k, c] = row_weight[k] * jac[rows[k], c]
+        _step(method, Jw, ew, damping, A, x, dq)
+        # joints at a limit that the step pushes further out drop out of this step
+        blocked = False
+        for c in range(n):
+            qi = var_q[c]
+            if (q[qi] <= lower[c] and dq[c] < 0.0) or (q[qi] >= upper[c] and dq[c] > 0.0):
+                blocked = True
+                for k in range(m):
+                    Jw[k, c] = 0.0
+        if blocked:
+            _step(method, Jw, ew, damping, A, x, dq)
+        for c in range(n):
+            qi = var_q[c]
+            q[qi] = min(max(q[qi] + gain * dq[c], lower[c]), upper[c])
+        it += 1
+
+
+@njit(cache=True)
+def solve_restarts(q_out, q_seed, seeds, targets, T_world_root, table, var_of_q, var_q, T_tip_tcp, lower,
+                   upper, rows, row_weight, tol_pos, tol_rot, max_iterations, method, max_step_pos,
+                   max_step_rot, damping, gain, stall_iterations, first_target):
+    """Try the seed rows ``seeds`` (R, n) in order until one converges.
+
+    Each attempt starts from ``q_seed`` (dof,) with the chain joints set to a seed row and
+    aims at target ``(first_target + attempt) % k`` of ``targets`` (k, 4, 4). The last
+    attempt's (or the converged) configuration is left in ``q_out`` (dof,).
+
+    Returns:
+        (attempt that converged or -1, target index, iterations summed, position error,
+        rotation error).
+    """
+    total = 0
+    k = targets.shape[0]
+    pos_err, rot_err, target_index = np.inf, np.inf, first_target % k
+    for a in range(seeds.shape[0]):
+        q_out[:] = q_seed
+        for c in range(var_q.shape[0]):
+            q_out[var_q[c]] = seeds[a, c]
+        target_index = (first_target + a) % k
+        outcome, it, pos_err, rot_err = solve(
+            q_out, targets, target_index, T_world_root, table, var_of_q, var_q, T_tip_tcp, lower, upper,
+            rows, row_weight, tol_pos, tol_rot, max_iterations, method, max_step_pos, max_step_rot,
+            damping, gain, stall_iterations)
+        total += it
+        if outcome == CONVERGED:
+            return a, target_index, total, pos_err, rot_err
+    return -1, target_index, total, pos_err, rot_err
