@@ -43,7 +43,8 @@ class JacobianIKSettings:
         method: "transpose", "pinv" or "dls".
         position_tolerance: m.
         rotation_tolerance: rad (ignored for position-only targets).
-        max_iterations: iteration cap of one solve (one seed).
+        max_iterations: iteration cap of one solve (one seed); None: 100 for ``dls`` and
+            ``pinv``, 3000 for ``transpose`` (a gradient method: linear convergence).
         max_step_position: Cartesian step clamp, m per iteration.
         max_step_rotation: rotation step clamp, rad per iteration.
         weights: (6,) weights of the task rows: x, y, z (per m) and rotation about x, y, z
@@ -51,20 +52,21 @@ class JacobianIKSettings:
         position_only: solve for the tool position only (rotation rows dropped).
         damping: lambda_0 of ``dls`` (m).
         gain: factor on every joint step.
-        stall_iterations: stop after this many iterations without a 0.1% improvement.
+        stall_iterations: stop after this many iterations without a 0.1% improvement; None:
+            10 for ``dls`` and ``pinv``, 200 for ``transpose``.
     """
 
     method: str = "dls"
     position_tolerance: float = 1e-4
     rotation_tolerance: float = 1e-3
-    max_iterations: int = 100
+    max_iterations: int | None = None
     max_step_position: float = 0.2
     max_step_rotation: float = 1.0
     weights: tuple[float, ...] = (1.0, 1.0, 1.0, 1.0, 1.0, 1.0)
     position_only: bool = False
     damping: float = 1e-3
     gain: float = 1.0
-    stall_iterations: int = 10
+    stall_iterations: int | None = None
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
@@ -74,6 +76,14 @@ class JacobianIKSettings:
         for name in ("position_tolerance", "rotation_tolerance", "max_step_position", "max_step_rotation", "gain"):
             if not getattr(self, name) > 0:
                 raise PrehensileError(f"IK setting {name} must be positive, got {getattr(self, name)}")
+
+    @property
+    def iteration_cap(self) -> int:
+        return self.max_iterations if self.max_iterations is not None else (3000 if self.method == "transpose" else 100)
+
+    @property
+    def stall_cap(self) -> int:
+        return self.stall_iterations if self.stall_iterations is not None else (200 if self.method == "transpose" else 10)
 
     def task_rows(self) -> tuple[np.ndarray, np.ndarray]:
         """Indices (m,) of the task rows in use and their weights (m,)."""
@@ -161,8 +171,8 @@ class ChainSolver:
         attempt, index, iterations, pos_err, rot_err = kernels.solve_restarts(
             q, q_seed, seeds, targets, self.T_world_root, self.table, self.var_of_q, self.var_q, self.T_tip_tcp,
             self.lower, self.upper, self.rows, self.row_weight, s.position_tolerance,
-            s.rotation_tolerance if not s.position_only else np.inf, s.max_iterations, METHODS[s.method],
-            s.max_step_position, s.max_step_rotation, s.damping, s.gain, s.stall_iterations, first_target)
+            s.rotation_tolerance if not s.position_only else np.inf, s.iteration_cap, METHODS[s.method],
+            s.max_step_position, s.max_step_rotation, s.damping, s.gain, s.stall_cap, first_target)
         return q, attempt, index, iterations, pos_err, rot_err
 
     def solve(self, target: np.ndarray, q_seed: np.ndarray | None = None) -> IKResult:
