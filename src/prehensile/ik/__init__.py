@@ -1,8 +1,10 @@
 """Inverse kinematics: Jacobian solvers, random-restart complete IK, analytic NAO arms, FABRIK."""
 
 from prehensile.ik.complete import CompleteIKSettings, collision_filter, solve_ik_complete
+from prehensile.ik.hybrid import HybridIKSettings, ObjectRegion, solve_ik_hybrid, solve_regrasp_ik
 from prehensile.ik.jacobian import METHODS, ChainSolver, JacobianIKSettings, solve_ik
 from prehensile.ik.result import IKResult, IKStatus
 
-__all__ = ["METHODS", "ChainSolver", "CompleteIKSettings", "IKResult", "IKStatus", "JacobianIKSettings",
-           "collision_filter", "solve_ik", "solve_ik_complete"]
+__all__ = ["METHODS", "ChainSolver", "CompleteIKSettings", "HybridIKSettings", "IKResult", "IKStatus",
+           "JacobianIKSettings", "ObjectRegion", "collision_filter", "solve_ik", "solve_ik_complete", "solve_ik_hybrid",
+           "solve_regrasp_ik"]

@@ -41,6 +41,8 @@ class IKResult:
         time_s: wall time (s).
         target_index: index of the pose reached when the target was a pose set (0 otherwise).
         restarts: random restarts used (0 when the first seed succeeded).
+        target_indices: per tool, the pose reached, for solvers with several tools (dual-arm
+            IK); empty otherwise.
     """
 
     status: IKStatus
@@ -52,6 +54,7 @@ class IKResult:
     time_s: float
     target_index: int = 0
     restarts: int = 0
+    target_indices: tuple[int, ...] = ()
 
     @property
     def success(self) -> bool:

@@ -1,0 +1,80 @@
+"""Hybrid IK (sampled free joints + per-arm solves), dual-arm and hand-over IK on ARMAR-III."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from prehensile import robots
+from prehensile.collision import ExactChecker
+from prehensile.errors import PrehensileError
+from prehensile.ik import ChainSolver, IKStatus, collision_filter
+from prehensile.ik.hybrid import HybridIKSettings, ObjectRegion, solve_ik_hybrid, solve_regrasp_ik
+from prehensile.spatial import invert, matrix_to_rpy
+
+
+@pytest.fixture(scope="module")
+def armar():
+    model = robots.load("armar3")
+    return model, ChainSolver(model, "LeftArm"), ChainSolver(model, "RightArm"), ExactChecker(model, [])
+
+
+def free_two_arm_configurations(model, exact, n, seed):
+    """n collision-free configurations with random arms and torso at rest."""
+    rng, out = np.random.default_rng(seed), []
+    arms = np.concatenate([model.chain_q_indices("LeftArm"), model.chain_q_indices("RightArm")])
+    while len(out) < n:
+        q = model.neutral_configuration()
+        q[arms] = model.random_configurations(rng)[arms]
+        if exact.is_free(q):
+            out.append(q)
+    return out
+
+
+def test_dual_arm_ik_reaches_both_hands(armar):
+    model, left, right, exact = armar
+    valid = collision_filter(exact_checker=exact)
+    solved = 0
+    for i, q in enumerate(free_two_arm_configurations(model, exact, 20, seed=0)):
+        targets = [left.tool_pose(q), right.tool_pose(q)]
+        result = solve_ik_hybrid([left, right], targets, "Torso", rng=i, is_valid=valid,
+                                 settings=HybridIKSettings(time_budget_s=0.2))
+        if result.success:
+            solved += 1
+            assert exact.is_free(result.q) and model.within_limits(result.q)
+            for solver, target in zip((left, right), targets):
+                assert np.linalg.norm(solver.tool_pose(result.q)[:3, 3] - target[:3, 3]) <= 1e-4
+            assert result.target_indices == (0, 0)
+    assert solved >= 16
+
+
+def test_same_seed_same_result_and_bad_arguments(armar):
+    model, left, right, exact = armar
+    q = free_two_arm_configurations(model, exact, 1, seed=3)[0]
+    targets = [left.tool_pose(q), right.tool_pose(q)]
+    a = solve_ik_hybrid([left, right], targets, "Torso", rng=5)
+    b = solve_ik_hybrid([left, right], targets, "Torso", rng=5)
+    assert a.status == b.status and np.array_equal(a.q, b.q)
+    with pytest.raises(PrehensileError, match="targets"):
+        solve_ik_hybrid([left, right], targets[:1])
+    with pytest.raises(PrehensileError, match="overlap"):
+        solve_ik_hybrid([left], targets[:1], free=["Shoulder_1_L"])
+    far = np.eye(4)
+    far[:3, 3] = [0.0, 0.0, 9.0]
+    timeout = solve_ik_hybrid([left], [far], "Torso", rng=0, settings=HybridIKSettings(time_budget_s=0.02))
+    assert timeout.status is IKStatus.TIMEOUT and timeout.time_s < 0.05
+
+
+def test_regrasp_ik_finds_a_hand_over_pose(armar):
+    model, left, right, exact = armar
+    q = free_two_arm_configurations(model, exact, 1, seed=7)[0]
+    T_world_left, T_world_right = left.tool_pose(q), right.tool_pose(q)
+    grasps = [np.eye(4)[None], (invert(T_world_left) @ T_world_right)[None]]  # the object is at the left TCP
+    p, rpy = T_world_left[:3, 3], matrix_to_rpy(T_world_left[:3, :3])
+    region = ObjectRegion(tuple(p - 0.02), tuple(p + 0.02), tuple(rpy - 0.05), tuple(rpy + 0.05))
+    result, T_world_object = solve_regrasp_ik([left, right], grasps, region, "Torso", rng=0, time_budget_s=2.0,
+                                              is_valid=collision_filter(exact_checker=exact))
+    assert result.success and T_world_object is not None
+    np.testing.assert_allclose(left.tool_pose(result.q)[:3, 3], T_world_object[:3, 3], atol=1e-4)
+    np.testing.assert_allclose(right.tool_pose(result.q)[:3, 3], (T_world_object @ grasps[1][0])[:3, 3], atol=1e-4)
+    assert exact.is_free(result.q)
