@@ -48,8 +48,12 @@ FIXED_NODES = {"Jaw", "VirtualCentralGaze", "Hand Palm 2 L", "Hand Palm 2 R"} | 
 MIMIC = {f"{f} {s} J1": f"{f} {s} J0" for f in ("Ring", "Pinky") for s in "LR"}
 LIMITS = {"X_Platform": (-10.0, 10.0, 1.0), "Y_Platform": (-10.0, 10.0, 1.0),
           "Yaw_Platform": (-2 * np.pi, 2 * np.pi, 1.0)}
-# pairs whose primitives touch by design at the home pose (co-located joints, eyes in the head)
-TOUCHING = [("Neck_1_Pitch", "Neck_3_Yaw"), ("Eye_Left", "Head_Tilt"), ("Eye_Right", "Head_Tilt")]
+# pairs whose primitives touch or lie a few millimetres apart by design (their covering balls
+# overlap at rest): co-located joints, eyes in the head, shoulder balls against the torso box,
+# neighbouring fingers, forearm and wrist flange
+TOUCHING = [("Neck_1_Pitch", "Neck_3_Yaw"), ("Eye_Left", "Head_Tilt"), ("Eye_Right", "Head_Tilt")] + [
+    pair for side in "LR" for pair in (("Hip_Yaw", f"Shoulder_2_{side}"), (f"Pinky_{side}_J0", f"Ring_{side}_J0"),
+                                       (f"Ring_{side}_J0", f"Middle_{side}_J0"), (f"Underarm_{side}", f"Wrist_2_{side}"))]
 
 def safe(name: str) -> str:
     """URDF-safe name of a Simox node: spaces become underscores."""

@@ -161,7 +161,7 @@ def cover_triangles(triangles: np.ndarray, n_spheres: int, refine: int = 4,
 
 def _box_cover(size: np.ndarray, budget: int) -> tuple[np.ndarray, np.ndarray]:
     """Balls circumscribing a grid of sub-boxes of a box of full ``size`` (3,) centred at 0."""
-    side = float(np.min(size))
+    side = float(np.min(size)) / 8.0  # the finest grid of cubes within the budget
     while True:
         counts = np.maximum(1, np.ceil(size / side - 1e-9)).astype(int)
         if counts.prod() <= max(1, budget):
@@ -224,12 +224,12 @@ def cover_geometries(
 
     Meshes are merged and covered by :func:`cover_triangles` with ``n_spheres`` balls (more,
     up to ``max_spheres``, while the largest radius exceeds ``max_radius``); primitives get
-    their exact covers with the same budget.
+    their exact covers with the same budget, grown the same way.
 
     Args:
         geometries: the link's collision geometries.
         n_spheres: balls for the link's meshes (and budget per primitive).
-        max_radius: optional largest radius (m) for mesh covers.
+        max_radius: optional largest radius (m) of the balls.
         max_edge: triangles are subdivided to this edge length (m) before clustering.
         max_spheres: cap on the number of balls for the meshes.
 
@@ -241,7 +241,12 @@ def cover_geometries(
         if isinstance(geometry.shape, Mesh):
             triangles.append(geometry_triangles(geometry, max_edge))
         else:
-            c, r = cover_primitive(geometry, n_spheres)
+            budget = n_spheres
+            while True:
+                c, r = cover_primitive(geometry, budget)
+                if max_radius is None or r.max() <= max_radius or budget >= max_spheres:
+                    break
+                budget = min(max_spheres, budget + max(1, budget // 4))
             centers.append(c)
             radii.append(r)
     if triangles:
