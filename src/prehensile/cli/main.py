@@ -169,3 +169,5 @@ if __name__ == "__main__":  # pragma: no cover
 
 
 # command modules register themselves on `app` / `bench_app` when imported
+from prehensile.cli import bench_mbm, plan_cmd  # noqa: E402,F401
+from prehensile.cli import bench_ik, ik_cmd  # noqa: E402,F401

@@ -9,7 +9,7 @@ checker certifies paths; planners use :class:`~prehensile.collision.sphere_check
 
 from __future__ import annotations
 
-from typing import Sequence
+from typing import NamedTuple, Sequence
 
 import coal
 import numpy as np
@@ -40,6 +40,24 @@ def coal_geometry(shape: Shape):
         bvh.endModel()
         return bvh
     raise TypeError(f"unsupported shape {type(shape).__name__}; valid: Box, Sphere, Cylinder, Capsule, Mesh")
+
+
+class ClosestPair(NamedTuple):
+    """Closest points of one robot link and one obstacle, in world coordinates.
+
+    Attributes:
+        link: robot link name.
+        other: obstacle name.
+        distance: signed distance (m), negative when penetrating.
+        point_on_robot: (3,) nearest point on the link's geometry (m).
+        point_on_other: (3,) nearest point on the obstacle (m).
+    """
+
+    link: str
+    other: str
+    distance: float
+    point_on_robot: np.ndarray
+    point_on_other: np.ndarray
 
 
 def _transform(T: np.ndarray):
@@ -152,6 +170,45 @@ class ExactChecker:
                         best = min(best, self._distance(a, c))
             out[b] = best
         return out.reshape(q.shape[:-1])
+
+    def closest_points(self, q: np.ndarray, max_distance: float = np.inf) -> list[ClosestPair]:
+        """Closest points of every robot link and every obstacle for one configuration q (dof,).
+
+        A link with several geometries reports its closest one. Pairs farther apart than
+        ``max_distance`` (m) are left out (a finite value skips geometries whose bounding ball
+        is farther, which is much faster for meshes); self pairs are not reported.
+
+        Returns:
+            One :class:`ClosestPair` per (link with geometry, obstacle) within ``max_distance``,
+            in link then obstacle order.
+        """
+        q = self.model.check_configuration(q)
+        placed = self._placed(forward_kinematics(self.model, q, self.T_world_base))
+        names = self.model.link_names
+        out: list[ClosestPair] = []
+        for i in self._links:
+            for name, geom, T in self._obstacles:
+                best = None
+                for part in placed[i]:
+                    if np.isfinite(max_distance) and self._ball_distance(part, (geom, T)) > max_distance:
+                        continue
+                    result = coal.DistanceResult()
+                    d = float(coal.distance(part[0], part[1], geom, T, self._distance_request, result))
+                    if best is None or d < best.distance:
+                        best = ClosestPair(names[i], name, d, np.array(result.getNearestPoint1(), dtype=float),
+                                           np.array(result.getNearestPoint2(), dtype=float))
+                if best is not None and best.distance <= max_distance:
+                    out.append(best)
+        return out
+
+    def _ball_distance(self, part, other) -> float:
+        """Lower bound (m) on the distance of a placed geometry to another: its bounding ball's distance."""
+        geom, T = part
+        if geom.aabb_radius < 0:
+            geom.computeLocalAABB()  # once per geometry; coal leaves it unset until asked
+        center = T.getRotation() @ geom.aabb_center + T.getTranslation()
+        ball = (coal.Sphere(geom.aabb_radius), coal.Transform3s(np.eye(3), center))
+        return self._distance(ball, other)
 
     def self_contacts(self, q: np.ndarray) -> np.ndarray:
         """(L, L) bool for one configuration q (dof,): which link pairs touch, over the pairs

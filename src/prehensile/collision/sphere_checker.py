@@ -167,18 +167,25 @@ class SphereChecker:
         self.obstacle_data = obstacle_arrays(obstacles, mesh_spheres)
         d = self.obstacle_data
         static = groups["frame"] == 0  # frame 0 is the model root: it never moves
-        self._args = (
+        self.data = (
+            self.T_world_base,
             *(frames[k] for k in ("parent", "jtype", "origin", "axis", "qidx", "mult", "offset")),
             groups["frame"], groups["ranges"], groups["centers"], groups["radii"], groups["bcenter"],
             groups["bradius"], ~static,
             d["otype"], d["opose"], d["oparam"], d["oaabb"], np.array(pairs, dtype=np.int64).reshape(-1, 2),
         )
+        """The arrays of the compiled kernels (see :func:`~prehensile.collision.sphere_kernels.clearance`)."""
+        self.group_links = groups["link"]
+        """(G,) the link of each ball group of the kernels; ``data[-1]`` (P, 2) pairs groups."""
+        self._scratch = K.make_scratch(self.data)
+        self._scales = K.unit_scales(self.data)
         # balls on the root body do not move: test them against the world once, here
-        static_args = list(self._args)
-        static_args[13] = static  # gtest: only the root body's groups
-        static_args[-1] = np.zeros((0, 2), dtype=np.int64)
-        self._static_hit = K.check_batch(np.zeros((1, model.dof)), self.T_world_base, *static_args,
-                                         np.empty(1, dtype=np.bool_), True) == 0
+        static_data = list(self.data)
+        static_data[14] = static  # gtest: only the root body's groups
+        static_data[-1] = np.zeros((0, 2), dtype=np.int64)
+        self.static_hit = K.check_batch(np.zeros((1, model.dof)), tuple(static_data), self._scratch,
+                                        K.unit_scales(tuple(static_data)), np.empty(1, dtype=np.bool_), True) == 0
+        """True if the robot's root body meets an obstacle: every configuration collides."""
 
     def is_free(self, q: np.ndarray) -> np.ndarray:
         """(*batch,) bool: no ball meets an obstacle or a ball of a non-allowed link, for q
@@ -186,10 +193,25 @@ class SphereChecker:
         q = self.model.check_configuration(q)
         flat = np.ascontiguousarray(q.reshape(-1, self.model.dof))
         out = np.empty(len(flat), dtype=np.bool_)
-        if self._static_hit:
+        if self.static_hit:
             out[:] = False
         else:
-            K.check_batch(flat, self.T_world_base, *self._args, out, False)
+            K.check_batch(flat, self.data, self._scratch, self._scales, out, False)
+        return out.reshape(q.shape[:-1])
+
+    def clearance(self, q: np.ndarray, cap: float = np.inf) -> np.ndarray:
+        """(*batch,) smallest distance (m) between a ball and an obstacle or a ball of a
+        non-allowed link, for q (*batch, dof); values above ``cap`` come back as ``cap``.
+
+        Negative means a collision (the value is then some negative distance, not the depth).
+        Balls on the root body are not measured against the world (they never move; see
+        :attr:`static_hit`).
+        """
+        q = self.model.check_configuration(q)
+        flat = np.ascontiguousarray(q.reshape(-1, self.model.dof))
+        out = np.array([K.clearance(row, self.data, self._scratch, float(cap), self._scales) for row in flat])
+        if self.static_hit:
+            out[:] = -np.inf
         return out.reshape(q.shape[:-1])
 
     def first_collision(self, q_path: np.ndarray) -> int:
@@ -201,7 +223,7 @@ class SphereChecker:
         q_path = self.model.check_configuration(q_path, "q_path")
         if q_path.ndim != 2:
             raise PrehensileError(f"q_path: expected shape (N, {self.model.dof}), got {q_path.shape}")
-        if self._static_hit:
+        if self.static_hit:
             return 0 if len(q_path) else -1
         out = np.empty(len(q_path), dtype=np.bool_)
-        return int(K.check_batch(np.ascontiguousarray(q_path), self.T_world_base, *self._args, out, True))
+        return int(K.check_batch(np.ascontiguousarray(q_path), self.data, self._scratch, self._scales, out, True))

@@ -1,16 +1,22 @@
-"""Compiled (numba) sphere-vs-world and sphere-vs-sphere checks with forward kinematics inside.
+"""Compiled (numba) clearance and collision checks of a robot's balls, forward kinematics inside.
 
 Obstacles are flat arrays: ``otype`` (O,) (SPHERE, BOX, CYLINDER, CAPSULE), ``opose`` (O, 3, 4)
 the rotation and origin of each shape in the world, ``oparam`` (O, 3) (sphere: radius; box:
 half sides; cylinder and capsule: radius, half length of the z-axis segment) and ``oaabb``
-(O, 6) world box (min xyz, max xyz). Every test is exact for a ball against the solid shape.
+(O, 6) world box (min xyz, max xyz). Every distance is exact for a ball against the solid shape.
 
 Forward kinematics runs only over the moving rigid bodies ("frames"); balls of links fixed to
-a body are stored in that body's frame. The hierarchy per configuration: a link's bounding
-ball is tested against an obstacle's AABB and then the obstacle itself; only then are the
-link's own balls placed and tested. Self pairs test the two bounding balls first, then each
-ball of one link against the other's bounding ball, and only the survivors against the other
-link's balls. The first collision ends the configuration.
+a body are stored in that body's frame. Everything a kernel needs is one tuple ``data`` (see
+:func:`clearance`) plus a ``scratch`` tuple of work arrays (:func:`make_scratch`), so planners
+can call the kernels from their own compiled loops.
+
+:func:`clearance` is the one loop nest: a lower bound on the distance between the robot's balls
+and everything they may touch, capped at ``cap``. The hierarchy per configuration: a link's
+bounding ball is tested against an obstacle's AABB, then the obstacle itself; only if it is
+closer than the best distance so far are the link's own balls placed and measured. Self pairs
+measure the two bounding balls first, then each ball of one link against the other's bounding
+ball, and only the survivors against the other link's balls. A negative distance (a collision)
+ends the configuration. With ``cap = 0`` this is a plain collision test.
 """
 
 from __future__ import annotations
@@ -66,12 +72,16 @@ def _link_pose(poses, pp, origin, f, jtype, axis, value, out):
 
 
 @njit(cache=True, inline="always")
-def _hits(otype, opose, oparam, o, x, y, z, r):
-    """True if the ball (x, y, z, r) meets obstacle o's solid."""
+def _core_distance2(otype, opose, oparam, o, x, y, z):
+    """(squared distance from the point (x, y, z) to obstacle o's core, core inflation radius).
+
+    Every shape is a core grown by a radius: a sphere is its centre grown by its radius, a
+    capsule its axis segment grown by its radius, a box or cylinder is its own solid (radius 0).
+    The distance of a ball (x, y, z, r) to the solid is ``sqrt(d2) - inflation - r``.
+    """
     dx, dy, dz = x - opose[o, 0, 3], y - opose[o, 1, 3], z - opose[o, 2, 3]
     if otype[o] == SPHERE:
-        rr = r + oparam[o, 0]
-        return dx * dx + dy * dy + dz * dz <= rr * rr
+        return dx * dx + dy * dy + dz * dz, oparam[o, 0]
     lx = opose[o, 0, 0] * dx + opose[o, 1, 0] * dy + opose[o, 2, 0] * dz
     ly = opose[o, 0, 1] * dx + opose[o, 1, 1] * dy + opose[o, 2, 1] * dz
     lz = opose[o, 0, 2] * dx + opose[o, 1, 2] * dy + opose[o, 2, 2] * dz
@@ -79,15 +89,12 @@ def _hits(otype, opose, oparam, o, x, y, z, r):
         ex = max(abs(lx) - oparam[o, 0], 0.0)
         ey = max(abs(ly) - oparam[o, 1], 0.0)
         ez = max(abs(lz) - oparam[o, 2], 0.0)
-        return ex * ex + ey * ey + ez * ez <= r * r
+        return ex * ex + ey * ey + ez * ez, 0.0
+    ez = max(abs(lz) - oparam[o, 1], 0.0)
     if otype[o] == CYLINDER:
-        radial = np.sqrt(lx * lx + ly * ly)
-        er = max(radial - oparam[o, 0], 0.0)
-        ez = max(abs(lz) - oparam[o, 1], 0.0)
-        return er * er + ez * ez <= r * r
-    ez = max(abs(lz) - oparam[o, 1], 0.0)  # capsule: distance to the axis segment
-    rr = r + oparam[o, 0]
-    return lx * lx + ly * ly + ez * ez <= rr * rr
+        er = max(np.sqrt(lx * lx + ly * ly) - oparam[o, 0], 0.0)
+        return er * er + ez * ez, 0.0
+    return lx * lx + ly * ly + ez * ez, oparam[o, 0]  # capsule: distance to the axis segment
 
 
 @njit(cache=True, inline="always")
@@ -99,96 +106,134 @@ def _place(poses, f, c, i, out, k):
     out[k, 2] = poses[f, 2, 0] * x + poses[f, 2, 1] * y + poses[f, 2, 2] * z + poses[f, 2, 3]
 
 
-@njit(cache=True, fastmath=FAST)
-def check_batch(qs, T_world_base, fparent, fjtype, forigin, faxis, fqidx, fmult, foffset,
-                gframe, granges, centers, radii, gbcenter, gbradius, gtest,
-                otype, opose, oparam, oaabb, pairs, out, stop_at_first):
-    """Check configurations qs (B, dof); out[b] = qs[b] is free (out (B,) bool).
+def make_scratch(data):
+    """Work arrays for :func:`clearance` with the arrays ``data``: (poses, wc, wb, placed)."""
+    T_world_base, fparent, centers, gframe = data[0], data[1], data[11], data[8]
+    poses = np.empty((fparent.shape[0] + 1, 4, 4))  # poses[0] = base, frame f at f + 1
+    poses[0] = T_world_base
+    return (poses, np.empty((max(centers.shape[0], 1), 3)), np.empty((max(gframe.shape[0], 1), 3)),
+            np.zeros(max(gframe.shape[0], 1), dtype=np.bool_))
 
-    Returns the index of the first colliding configuration, or -1; with ``stop_at_first`` it
-    returns there (later entries of ``out`` are not written).
 
+# no reference counting (``_nrt=False``): the kernel allocates nothing, and the increfs and
+# decrefs numba emits for two dozen array arguments otherwise cost a third of a check
+@njit(cache=True, fastmath=FAST, _nrt=False)
+def clearance(q, data, scratch, cap, scales):
+    """Lower bound on the scaled clearance of the robot's balls at configuration q (dof,), capped.
+
+    Returns ``min(cap, min over the tested ball pairs of distance / scale)``: a ball s against
+    an obstacle has scale ``bscale[s, 0]``, balls s and t of self pair p have scale
+    ``bscale[s, c] + bscale[t, c]`` with ``c = pcut[p]``. With a scale that bounds how far a
+    ball moves (relative to what it is tested against) per unit of a motion parameter, the
+    result is how far that parameter may change before anything can touch: a "free bubble"
+    (Quinlan 1995) per ball pair. With world scales 1 and pair scales 1/2 it is the clearance
+    in metres. A negative value means a collision (the search stops there; touching balls
+    count as free). ``cap = 0`` gives a plain collision test.
+
+    ``data`` = (T_world_base, fparent, fjtype, forigin, faxis, fqidx, fmult, foffset, gframe,
+    granges, centers, radii, gbcenter, gbradius, gtest, otype, opose, oparam, oaabb, pairs).
     Frames (F) are the moving rigid bodies (a link and everything fixed to it): ``fparent``
     (-1 for the world base), joint type, origin (F, 4, 4) in the parent frame, axis, q index,
     mimic multiplier and offset. Groups (G) are the links with balls: ``gframe`` (G,) their
     frame, ``granges`` (G, 2) their balls ``[start, stop)`` (centres in the frame), and a
     bounding ball ``gbcenter`` (G, 3), ``gbradius`` (G,); groups are sorted by frame.
     ``gtest`` (G,) bool marks the groups tested against obstacles, ``pairs`` (P, 2) the group
-    pairs tested against each other. The whole check is one loop nest (no per-configuration
-    call: passing two dozen arrays per call costs more than the checks themselves).
+    pairs tested against each other. ``scales`` = (gscale (G,), pscale (P, 2), bscale (S, C),
+    pcut (P,) int64): ``gscale[g]`` and ``pscale[p]`` must bound the scales of the group's
+    balls (world, and each side of pair p); scales must be positive (a tiny value for a ball
+    that does not move: it then only counts if it collides). ``scratch`` comes from
+    :func:`make_scratch`.
     """
-    poses = np.empty((fparent.shape[0] + 1, 4, 4))  # poses[0] = base, frame f at f + 1
-    poses[0] = T_world_base
-    wc = np.empty((max(centers.shape[0], 1), 3))
-    wb = np.empty((max(gframe.shape[0], 1), 3))
-    placed = np.zeros(max(gframe.shape[0], 1), dtype=np.bool_)
+    (_, fparent, fjtype, forigin, faxis, fqidx, fmult, foffset, gframe, granges, centers, radii,
+     gbcenter, gbradius, gtest, otype, opose, oparam, oaabb, pairs) = data
+    poses, wc, wb, placed = scratch
+    gscale, pscale, bscale, pcut = scales
+    best = cap
+    # frames parents-first; each group meets the obstacles as soon as its frame is known,
+    # so a collision skips the remaining FK
+    g = 0
+    for f in range(fparent.shape[0]):
+        value = 0.0
+        if fqidx[f] >= 0:
+            value = fmult[f] * q[fqidx[f]] + foffset[f]
+        _link_pose(poses, fparent[f] + 1, forigin, f, fjtype[f], faxis, value, f + 1)
+        while g < gframe.shape[0] and gframe[g] == f:
+            _place(poses, f + 1, gbcenter, g, wb, g)
+            placed[g] = False
+            if gtest[g]:
+                bx, by, bz, br = wb[g, 0], wb[g, 1], wb[g, 2], gbradius[g]
+                for o in range(otype.shape[0]):
+                    reach = best * gscale[g] + br
+                    if (bx + reach <= oaabb[o, 0] or bx - reach >= oaabb[o, 3] or by + reach <= oaabb[o, 1]
+                            or by - reach >= oaabb[o, 4] or bz + reach <= oaabb[o, 2] or bz - reach >= oaabb[o, 5]):
+                        continue
+                    d2, grow = _core_distance2(otype, opose, oparam, o, bx, by, bz)
+                    reach = best * gscale[g] + br + grow
+                    if d2 >= reach * reach:
+                        continue
+                    if not placed[g]:
+                        for s in range(granges[g, 0], granges[g, 1]):
+                            _place(poses, f + 1, centers, s, wc, s)
+                        placed[g] = True
+                    for s in range(granges[g, 0], granges[g, 1]):
+                        d2, grow = _core_distance2(otype, opose, oparam, o, wc[s, 0], wc[s, 1], wc[s, 2])
+                        reach = best * bscale[s, 0] + radii[s] + grow
+                        if d2 < reach * reach:
+                            best = (np.sqrt(d2) - grow - radii[s]) / bscale[s, 0]
+                            if best < 0.0:
+                                return best
+            g += 1
+    for p in range(pairs.shape[0]):
+        i, j, c = pairs[p, 0], pairs[p, 1], pcut[p]
+        dx, dy, dz = wb[i, 0] - wb[j, 0], wb[i, 1] - wb[j, 1], wb[i, 2] - wb[j, 2]
+        reach = best * (pscale[p, 0] + pscale[p, 1]) + gbradius[i] + gbradius[j]
+        if dx * dx + dy * dy + dz * dz >= reach * reach:
+            continue
+        if not placed[i]:
+            for s in range(granges[i, 0], granges[i, 1]):
+                _place(poses, gframe[i] + 1, centers, s, wc, s)
+            placed[i] = True
+        if not placed[j]:
+            for s in range(granges[j, 0], granges[j, 1]):
+                _place(poses, gframe[j] + 1, centers, s, wc, s)
+            placed[j] = True
+        for s in range(granges[i, 0], granges[i, 1]):
+            dx, dy, dz = wc[s, 0] - wb[j, 0], wc[s, 1] - wb[j, 1], wc[s, 2] - wb[j, 2]
+            reach = best * (bscale[s, c] + pscale[p, 1]) + radii[s] + gbradius[j]
+            if dx * dx + dy * dy + dz * dz >= reach * reach:  # ball s is farther from all of group j
+                continue
+            for t in range(granges[j, 0], granges[j, 1]):
+                dx, dy, dz = wc[s, 0] - wc[t, 0], wc[s, 1] - wc[t, 1], wc[s, 2] - wc[t, 2]
+                scale = bscale[s, c] + bscale[t, c]
+                reach = best * scale + radii[s] + radii[t]
+                if dx * dx + dy * dy + dz * dz < reach * reach:
+                    best = (np.sqrt(dx * dx + dy * dy + dz * dz) - radii[s] - radii[t]) / scale
+                    if best < 0.0:
+                        return best
+    return best
+
+
+def unit_scales(data) -> tuple:
+    """Scales for :func:`clearance` that make it the clearance in metres."""
+    balls, pairs = data[11].shape[0], data[19].shape[0]
+    bscale = np.full((balls, 2), 0.5)
+    bscale[:, 0] = 1.0
+    return (np.ones(data[13].shape[0]), np.full((pairs, 2), 0.5), bscale, np.ones(pairs, dtype=np.int64))
+
+
+@njit(cache=True, fastmath=FAST)
+def check_batch(qs, data, scratch, scales, out, stop_at_first):
+    """Check configurations qs (B, dof); out[b] = qs[b] is free (out (B,) bool).
+
+    ``scales`` as for :func:`clearance` (any valid ones: the test does not depend on them).
+    Returns the index of the first colliding configuration, or -1; with ``stop_at_first`` it
+    returns there (later entries of ``out`` are not written). The whole batch is one compiled
+    call (passing two dozen arrays per call costs more than the checks themselves).
+    """
     first = -1
     for b in range(qs.shape[0]):
-        free = True
-        # frames parents-first; each group meets the obstacles as soon as its frame is known,
-        # so a collision skips the remaining FK
-        g = 0
-        for f in range(fparent.shape[0]):
-            value = 0.0
-            if fqidx[f] >= 0:
-                value = fmult[f] * qs[b, fqidx[f]] + foffset[f]
-            _link_pose(poses, fparent[f] + 1, forigin, f, fjtype[f], faxis, value, f + 1)
-            while free and g < gframe.shape[0] and gframe[g] == f:
-                _place(poses, f + 1, gbcenter, g, wb, g)
-                placed[g] = False
-                if gtest[g]:
-                    bx, by, bz, br = wb[g, 0], wb[g, 1], wb[g, 2], gbradius[g]
-                    for o in range(otype.shape[0]):
-                        if (bx + br < oaabb[o, 0] or bx - br > oaabb[o, 3] or by + br < oaabb[o, 1]
-                                or by - br > oaabb[o, 4] or bz + br < oaabb[o, 2] or bz - br > oaabb[o, 5]):
-                            continue
-                        if not _hits(otype, opose, oparam, o, bx, by, bz, br):
-                            continue
-                        if not placed[g]:
-                            for s in range(granges[g, 0], granges[g, 1]):
-                                _place(poses, f + 1, centers, s, wc, s)
-                            placed[g] = True
-                        for s in range(granges[g, 0], granges[g, 1]):
-                            if _hits(otype, opose, oparam, o, wc[s, 0], wc[s, 1], wc[s, 2], radii[s]):
-                                free = False
-                                break
-                        if not free:
-                            break
-                g += 1
-            if not free:
-                break
-        if free:
-            for p in range(pairs.shape[0]):
-                i, j = pairs[p, 0], pairs[p, 1]
-                dx, dy, dz = wb[i, 0] - wb[j, 0], wb[i, 1] - wb[j, 1], wb[i, 2] - wb[j, 2]
-                rr = gbradius[i] + gbradius[j]
-                if dx * dx + dy * dy + dz * dz > rr * rr:
-                    continue
-                if not placed[i]:
-                    for s in range(granges[i, 0], granges[i, 1]):
-                        _place(poses, gframe[i] + 1, centers, s, wc, s)
-                    placed[i] = True
-                if not placed[j]:
-                    for s in range(granges[j, 0], granges[j, 1]):
-                        _place(poses, gframe[j] + 1, centers, s, wc, s)
-                    placed[j] = True
-                for s in range(granges[i, 0], granges[i, 1]):
-                    dx, dy, dz = wc[s, 0] - wb[j, 0], wc[s, 1] - wb[j, 1], wc[s, 2] - wb[j, 2]
-                    rr = radii[s] + gbradius[j]
-                    if dx * dx + dy * dy + dz * dz > rr * rr:  # ball s misses all of group j
-                        continue
-                    for t in range(granges[j, 0], granges[j, 1]):
-                        dx, dy, dz = wc[s, 0] - wc[t, 0], wc[s, 1] - wc[t, 1], wc[s, 2] - wc[t, 2]
-                        rr = radii[s] + radii[t]
-                        if dx * dx + dy * dy + dz * dz <= rr * rr:
-                            free = False
-                            break
-                    if not free:
-                        break
-                if not free:
-                    break
-        out[b] = free
-        if not free and first < 0:
+        out[b] = clearance(qs[b], data, scratch, 0.0, scales) >= 0.0
+        if not out[b] and first < 0:
             first = b
             if stop_at_first:
                 return first

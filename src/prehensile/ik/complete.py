@@ -40,7 +40,7 @@ class CompleteIKSettings:
     """
 
     time_budget_s: float = 0.005
-    batch: int = 8
+    batch: int = 2
     max_restarts: int | None = None
 
     def __post_init__(self) -> None:

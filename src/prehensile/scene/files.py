@@ -11,6 +11,7 @@ Schema (format version 1; lengths in m, angles in rad)::
           position: [0.0, 0.0, 0.75]
           rpy: [0.0, 0.0, 1.57]      # or quaternion: [w, x, y, z] (scalar first, unit norm)
         joints: {panda_joint1: 0.3}  # optional; joints not named stay at neutral (rad or m)
+        goal: {panda_joint1: -0.3}   # optional planning goal (see robot_goals); not part of Scene
     obstacles:                       # static bodies
       - name: table                  # unique among obstacles and objects
         pose: {position: [0.5, 0, 0.37]}
@@ -47,7 +48,7 @@ from prehensile.scene.schema import (
 
 FORMAT_VERSION = 1
 SCENE_KEYS = ("version", "robots", "obstacles", "objects")
-ROBOT_KEYS = ("name", "robot", "pose", "joints")
+ROBOT_KEYS = ("name", "robot", "pose", "joints", "goal")
 BODY_KEYS = ("name", "pose", "shape", "shapes")
 _MODEL_SUFFIXES = (".urdf", ".xml", ".mjcf", ".srdf")
 
@@ -96,6 +97,26 @@ def scene_from_dict(data: Any, base_dir: Path, source: str = "<scene>") -> Scene
     }
     _unique([b.name for b in bodies["obstacles"] + bodies["objects"]], f"{source}: obstacles and objects")
     return Scene(robots, bodies["obstacles"], bodies["objects"], source)
+
+
+def robot_goals(path: str | os.PathLike, scene: Scene) -> dict[str, dict[str, float]]:
+    """The ``goal:`` entries of a scene file's robots: robot name -> {joint: value (rad or m)}.
+
+    Goals are planning inputs (``prehensile plan``), not part of :class:`Scene`;
+    :func:`save_scene` does not write them. ``scene`` is :func:`load_scene` of the same file.
+
+    Raises:
+        SceneError: a goal that is not a mapping, names a joint the robot does not have, or
+            holds a value outside the joint's limits.
+    """
+    data = yaml.safe_load(Path(path).read_text(encoding="utf-8")) or {}
+    goals = {}
+    for i, (entry, robot) in enumerate(zip(_list(data, "robots", str(path)), scene.robots)):
+        if isinstance(entry, Mapping) and entry.get("goal") is not None:
+            where = f"{path}: robots[{i}]{_label(entry)}.goal"
+            q = _read_joints(entry["goal"], robot.model, where)
+            goals[robot.name] = {joint: float(q[robot.model.joint_index(joint)]) for joint in entry["goal"]}
+    return goals
 
 
 def save_scene(scene: Scene, path: str | os.PathLike) -> None:

@@ -1,0 +1,296 @@
+"""MotionBenchMaker-style benchmark: every MoveIt scene/request pair of a folder or archive.
+
+For each problem the robot is placed by the scene's ``robot_state``, the obstacles are the
+scene's collision objects, and the planned joints are the request's planning group (a chain of
+the model, e.g. an SRDF group) or, when the model has no such chain, the joints of the
+request's goal constraints. Start and goal come from the request; joints not planned keep their
+start values.
+
+Measured per problem and planner:
+
+- **planning time**: search plus simplification, wall clock, the same definition for ours
+  (the :func:`~prehensile.planning.rrt_connect` call minus its reported certification
+  time) and the peer (OMPL ``solve`` + ``simplifySolution``);
+- **certification time**: our planner's exact-mesh certification, reported separately;
+- **path length**: workspace-weighted length (m) of the returned path, the same metric for both;
+- **exact collision**: every returned path is re-checked here, independently of the planner's
+  own certification, with the exact meshes at configurations ``verify_resolution`` m apart
+  (workspace-weighted), so a path that only the spheres call free is counted as colliding.
+
+Timing statistics (median, 95th percentile, mean) are over the solved problems, as in the
+MotionBenchMaker and VAMP reports; ``solved`` / ``total`` and the status counts say how many
+that is. Speed-ups are OMPL time / our time (> 1: ours faster).
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Callable, Sequence
+
+import numpy as np
+
+from prehensile.benchmarking.stats import machine, mean_or_none, ratio, time_summary, versions
+from prehensile.collision.spheres import SphereModel, generate_sphere_model, pad_sphere_model, spheres_from_urdf
+from prehensile.errors import PrehensileError
+from prehensile.model.robot_model import RobotModel
+from prehensile.scene.moveit import MBMProblem, iter_mbm_problems
+
+log = logging.getLogger(__name__)
+
+PLANNERS = ("rrt_connect",)
+
+
+@dataclass(frozen=True)
+class MBMSettings:
+    """Benchmark settings.
+
+    Attributes:
+        planner: our planner, one of :data:`PLANNERS`.
+        time_budget_s: search time limit per problem and planner (s).
+        seed: seed of our planner's generator (per problem: ``seed + problem number``) and of OMPL.
+        limit: at most this many problems per scenario (0: all).
+        compare_ompl: also run OMPL's RRT-Connect on every problem.
+        resolution: motion-check spacing (m, workspace-weighted) of both planners.
+        certify_resolution: our planner's exact certification spacing (m).
+        verify_resolution: spacing (m) of the independent exact re-check of returned paths.
+    """
+
+    planner: str = "rrt_connect"
+    time_budget_s: float = 1.0
+    seed: int = 0
+    limit: int = 0
+    compare_ompl: bool = False
+    resolution: float = 0.005
+    certify_resolution: float = 0.002
+    verify_resolution: float = 0.002
+
+    def __post_init__(self) -> None:
+        if self.planner not in PLANNERS:
+            raise PrehensileError(f"planner '{self.planner}' is not available; valid: {', '.join(PLANNERS)}")
+        if not self.time_budget_s > 0:
+            raise PrehensileError(f"budget: must be positive (s), got {self.time_budget_s}")
+        if self.limit < 0:
+            raise PrehensileError(f"limit: must be >= 0 (0 = all problems), got {self.limit}")
+        for name in ("resolution", "certify_resolution", "verify_resolution"):
+            if not getattr(self, name) > 0:
+                raise PrehensileError(f"{name}: must be positive (m), got {getattr(self, name)}")
+
+
+def benchmark_spheres(model: RobotModel, spherized_urdf: str | Path | None) -> SphereModel:
+    """The robot's sphere model: a spherized URDF's balls padded to cover the meshes, or generated."""
+    if spherized_urdf is None:
+        return generate_sphere_model(model)
+    return pad_sphere_model(spheres_from_urdf(model, spherized_urdf), model)
+
+
+def planned_joints(model: RobotModel, problem: MBMProblem) -> list[str]:
+    """The joints to plan: the request's group as a chain of the model, else its goal joints.
+
+    Raises:
+        PrehensileError: neither gives a joint of the model.
+    """
+    request = problem.request
+    if request.group in model.chains:
+        return list(model.chain(request.group).joint_names)
+    joints = [j for j in request.goal if j in model.joint_names]
+    if not joints:
+        chains = ", ".join(model.chains) or "(none)"
+        raise PrehensileError(
+            f"{request.source}: planning group '{request.group}' is not a chain of robot '{model.name}' "
+            f"(chains: {chains}; give the SRDF) and no goal joint is a joint of the model")
+    return joints
+
+
+def load_problems(path: str | Path, model: RobotModel, limit: int = 0) -> list[MBMProblem]:
+    """The problems of a folder or archive (at most ``limit`` per scenario if > 0), sorted.
+
+    Raises:
+        SceneError: the path is neither a folder nor an archive, or a pair is incomplete.
+        PrehensileError: no problem found.
+    """
+    problems, counts = [], {}
+    for problem in iter_mbm_problems(path, robot=model):
+        counts[problem.scenario] = counts.get(problem.scenario, 0) + 1
+        if not limit or counts[problem.scenario] <= limit:
+            problems.append(problem)
+    if not problems:
+        raise PrehensileError(f"{path}: no MoveIt problems found (expected sceneNNNN.yaml / requestNNNN.yaml pairs)")
+    return problems
+
+
+def path_collides_exactly(space, exact, path: np.ndarray, resolution: float) -> bool:
+    """Whether the exact meshes find a collision on the path (N, dof) checked ``resolution`` m apart.
+
+    Each straight segment is sampled with ``space.interpolate`` (workspace-weighted spacing);
+    segments are checked in order and the check stops at the first colliding one.
+    """
+    active = space.active(path)
+    for a, b in zip(active[:-1], active[1:]):
+        if not np.all(exact.is_free(space.full(space.interpolate(a, b, resolution)))):
+            return True
+    return len(active) == 1 and not bool(exact.is_free(path[0]))
+
+
+class _Problem:
+    """One problem prepared for planning: context, start and goal."""
+
+    def __init__(self, model: RobotModel, spheres: SphereModel, problem: MBMProblem, settings: MBMSettings) -> None:
+        from prehensile.planning import PlanningContext
+
+        self.problem = problem
+        self.q_start = problem.request.start_configuration(model)
+        self.q_goal = problem.request.goal_configuration(model)
+        T_world_base = problem.scene.robots[0].T_world_base if problem.scene.robots else None
+        self.ctx = PlanningContext(model, problem.scene.collision_obstacles(), joints=planned_joints(model, problem),
+                                   q_ref=self.q_start, T_world_base=T_world_base, spheres=spheres,
+                                   resolution=settings.resolution, certify_resolution=settings.certify_resolution)
+        self.ctx.certifier  # built lazily on first use: build it here, outside the timed call  # noqa: B018
+
+
+def _ours(prepared: _Problem, settings: MBMSettings, seed: int) -> dict:
+    from prehensile.planning import RRTConnectSettings, rrt_connect
+
+    rng = np.random.default_rng(seed)
+    start = time.perf_counter()
+    result = rrt_connect(prepared.ctx, prepared.q_start, prepared.q_goal,
+                         settings=RRTConnectSettings(time_budget_s=settings.time_budget_s), rng=rng)
+    wall = time.perf_counter() - start
+    return _record(prepared, result, wall - result.stats.certify_time_s, settings)
+
+
+def _ompl(prepared: _Problem, settings: MBMSettings) -> dict:
+    from prehensile.benchmarking.ompl_peer import OMPLSettings, ompl_rrt_connect
+
+    ompl_settings = OMPLSettings(time_budget_s=settings.time_budget_s, resolution=settings.resolution)
+    result = ompl_rrt_connect(prepared.ctx.space, prepared.ctx.spheres, prepared.q_start, prepared.q_goal,
+                              ompl_settings, seed=settings.seed)
+    return _record(prepared, result, result.stats.plan_time_s + result.stats.simplify_time_s, settings)
+
+
+def _record(prepared: _Problem, result, time_s: float, settings: MBMSettings) -> dict:
+    """The per-problem record of one planner's result."""
+    space = prepared.ctx.space
+    record = {
+        "status": result.status.value, "solved": result.success, "time_s": time_s,
+        "search_s": result.stats.plan_time_s, "simplify_s": result.stats.simplify_time_s,
+        "certify_s": result.stats.certify_time_s, "collision_checks": result.stats.collision_checks,
+        "waypoints": len(result.path), "path_length": None, "exact_colliding": None,
+    }
+    if result.success:
+        record["path_length"] = space.path_length(space.active(result.path))
+        record["exact_colliding"] = path_collides_exactly(space, prepared.ctx.exact, result.path,
+                                                          settings.verify_resolution)
+    return record
+
+
+def summarize(records: Sequence[dict]) -> dict:
+    """Solved / total, timing statistics over solved problems, mean path length, colliding
+    paths and status counts of one planner's per-problem records."""
+    solved = [r for r in records if r["solved"]]
+    statuses: dict[str, int] = {}
+    for r in records:
+        statuses[r["status"]] = statuses.get(r["status"], 0) + 1
+    search = time_summary([r["search_s"] for r in solved])
+    simplify = time_summary([r["simplify_s"] for r in solved])
+    certify = time_summary([r["certify_s"] for r in solved])
+    return {
+        "solved": len(solved), "total": len(records),
+        "solved_fraction": len(solved) / len(records) if records else None,
+        **time_summary([r["time_s"] for r in solved]),
+        "search_median_ms": search["median_ms"], "simplify_median_ms": simplify["median_ms"],
+        "certify_median_ms": certify["median_ms"], "certify_p95_ms": certify["p95_ms"],
+        "path_length": mean_or_none(r["path_length"] for r in solved),
+        "colliding_paths": sum(bool(r["exact_colliding"]) for r in solved),
+        "collision_checks_median": float(np.median([r["collision_checks"] for r in solved])) if solved else None,
+        "statuses": statuses,
+    }
+
+
+def _by_scenario(runs: Sequence[dict], key: str) -> dict:
+    scenarios: dict[str, list[dict]] = {}
+    for run in runs:
+        scenarios.setdefault(run["scenario"], []).append(run[key])
+    return {"overall": summarize([run[key] for run in runs]),
+            "scenarios": {name: summarize(records) for name, records in scenarios.items()}}
+
+
+def speedups(ours: dict, ompl: dict) -> dict:
+    """OMPL / ours for the time statistics of two summaries, ours / OMPL for path length."""
+    return {
+        "median_speedup": ratio(ompl["median_ms"], ours["median_ms"]),
+        "p95_speedup": ratio(ompl["p95_ms"], ours["p95_ms"]),
+        "mean_speedup": ratio(ompl["mean_ms"], ours["mean_ms"]),
+        "search_median_speedup": ratio(ompl["search_median_ms"], ours["search_median_ms"]),
+        "path_length_ratio": ratio(ours["path_length"], ompl["path_length"]),
+    }
+
+
+def _ratios(runs: Sequence[dict], ours: dict, ompl: dict) -> dict:
+    both = [r for r in runs if r["ours"]["solved"] and r["ompl"]["solved"]]
+    paired = [r["ompl"]["time_s"] / r["ours"]["time_s"] for r in both if r["ours"]["time_s"] > 0]
+    return {
+        **speedups(ours["overall"], ompl["overall"]),
+        "paired_problems": len(both),
+        "paired_median_speedup": float(np.median(paired)) if paired else None,
+        "scenarios": {name: speedups(summary, ompl["scenarios"][name]) for name, summary in ours["scenarios"].items()},
+    }
+
+
+def run_mbm(problems_path: str | Path, model: RobotModel, spheres: SphereModel, settings: MBMSettings = MBMSettings(),
+            progress: Callable[[int, int, dict], None] | None = None) -> dict:
+    """Run the benchmark; returns the JSON-ready report.
+
+    Args:
+        problems_path: folder or archive of MoveIt scene/request YAML pairs.
+        model: the robot (with its SRDF for groups and disabled collision pairs).
+        spheres: the robot's sphere model (see :func:`benchmark_spheres`).
+        settings: see :class:`MBMSettings`.
+        progress: called after each problem with (done, total, per-problem record).
+
+    Returns:
+        ``{"overall", "scenarios", "ompl", "ratios", "runs", "settings", "robot", "machine",
+        "versions"}``; ``ompl`` and ``ratios`` are None without ``compare_ompl``.
+    """
+    problems = load_problems(problems_path, model, settings.limit)
+    _warm_up(model, spheres, problems[0], settings)
+    runs = []
+    for number, problem in enumerate(problems):
+        prepared = _Problem(model, spheres, problem, settings)
+        run = {"scenario": problem.scenario, "index": problem.index,
+               "ours": _ours(prepared, settings, settings.seed + number)}
+        if settings.compare_ompl:
+            run["ompl"] = _ompl(prepared, settings)
+        runs.append(run)
+        if progress is not None:
+            progress(number + 1, len(problems), run)
+    ours = _by_scenario(runs, "ours")
+    ompl = _by_scenario(runs, "ompl") if settings.compare_ompl else None
+    report = {
+        "benchmark": "mbm", "problems": str(problems_path), **ours, "ompl": ompl,
+        "ratios": _ratios(runs, ours, ompl) if ompl else None,
+        "settings": asdict(settings),
+        "robot": {"name": model.name, "source": model.source, "spheres": spheres.n_spheres,
+                  "joints": planned_joints(model, problems[0])},
+        "machine": machine(), "versions": versions(), "runs": runs,
+    }
+    if settings.compare_ompl:
+        from prehensile.benchmarking.ompl_peer import segment_fraction, validity_call_seconds
+
+        prepared = _Problem(model, spheres, problems[0], settings)
+        report["ompl"]["validity_call_us"] = 1e6 * validity_call_seconds(prepared.ctx.spheres, prepared.q_start)
+        report["ompl"]["segment_fraction"] = segment_fraction(prepared.ctx.space, settings.resolution)
+    return report
+
+
+def _warm_up(model: RobotModel, spheres: SphereModel, problem: MBMProblem, settings: MBMSettings) -> None:
+    """Compile (or load from numba's cache) every kernel on one problem before timing."""
+    from prehensile.planning import RRTConnectSettings, rrt_connect
+
+    start = time.perf_counter()
+    prepared = _Problem(model, spheres, problem, settings)
+    budget = RRTConnectSettings(time_budget_s=settings.time_budget_s)
+    rrt_connect(prepared.ctx, prepared.q_start, prepared.q_goal, budget)
+    log.info("warm-up (compilation) took %.2f s", time.perf_counter() - start)

@@ -1,0 +1,95 @@
+"""``prehensile bench mbm``: our planner (and OMPL's) on MoveIt / MotionBenchMaker problems."""
+
+from __future__ import annotations
+
+import shlex
+from pathlib import Path
+from typing import Optional
+
+import typer
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+from rich.table import Column, Table
+
+from prehensile.cli.app import bench_app, console, err_console, handles_errors
+from prehensile.errors import PrehensileError
+
+
+@bench_app.command("mbm")
+@handles_errors
+def bench_mbm(
+    problems: Path = typer.Argument(..., help="Folder or .tar.bz2 of MoveIt sceneNNNN.yaml / requestNNNN.yaml pairs."),
+    robot: str = typer.Option(..., "--robot", help="Robot URDF (or a bundled robot name)."),
+    spheres: Optional[Path] = typer.Option(None, "--spheres", help="Spherized URDF; its balls are padded to cover "
+                                           "the meshes (default: spheres generated from the meshes)."),
+    srdf: Optional[Path] = typer.Option(None, "--srdf", help="SRDF with the planning groups and disabled collision "
+                                        "pairs (default: <urdf stem>.srdf next to the URDF if present)."),
+    planner: str = typer.Option("rrt_connect", "--planner", help="Our planner."),
+    compare_ompl: bool = typer.Option(False, "--compare-ompl", help="Also run OMPL's RRT-Connect on every problem."),
+    budget: float = typer.Option(1.0, "--budget", help="Search time limit per problem and planner (s)."),
+    seed: int = typer.Option(0, "--seed", help="Random seed."),
+    limit: int = typer.Option(0, "--limit", help="At most N problems per scenario (0: all)."),
+    json_out: Optional[Path] = typer.Option(None, "--json", help="Write the full report (JSON) to this file."),
+) -> None:
+    """Plan every problem; report solved, median / p95 planning time (search + simplification),
+    path length, certification time and exactly-colliding paths, per scenario and overall."""
+    from prehensile import robots
+    from prehensile.benchmarking.mbm import MBMSettings, benchmark_spheres, run_mbm
+    from prehensile.storage import atomic_write_json
+
+    settings = MBMSettings(planner=planner, time_budget_s=budget, seed=seed, limit=limit, compare_ompl=compare_ompl)
+    if not problems.exists():
+        raise PrehensileError(f"{problems}: no such folder or archive of MoveIt problems")
+    if spheres is not None and not spheres.is_file():
+        raise PrehensileError(f"--spheres {spheres}: file not found")
+    model = robots.load(robot, srdf)
+    sphere_model = benchmark_spheres(model, spheres)
+    with Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
+                  console=err_console, transient=True) as bar:
+        task = bar.add_task("planning", total=None)
+
+        def progress(done: int, total: int, run: dict) -> None:
+            bar.update(task, completed=done, total=total, description=f"{run['scenario']} {run['index']:04d}")
+
+        report = run_mbm(problems, model, sphere_model, settings, progress)
+    options = {"--robot": robot, "--srdf": srdf, "--spheres": spheres, "--planner": planner, "--budget": budget,
+               "--seed": seed, "--limit": limit, "--json": json_out}
+    words = ["prehensile", "bench", "mbm", str(problems)] + ["--compare-ompl"] * compare_ompl
+    report["command"] = shlex.join(words + [str(w) for k, v in options.items() if v is not None for w in (k, v)])
+    report["robot"].update(urdf=str(robot), srdf=None if srdf is None else str(srdf),
+                           spherized_urdf=None if spheres is None else str(spheres))
+    print_report(report)
+    if json_out is not None:
+        atomic_write_json(json_out, report)
+        console.print(f"wrote {json_out}")
+
+
+def _ms(value: float | None) -> str:
+    return "-" if value is None else f"{value:.3g}" if value < 10 else f"{value:.0f}"
+
+
+def _x(value: float | None) -> str:
+    return "-" if value is None else f"{value:.1f}x"
+
+
+def print_report(report: dict) -> None:
+    """A rich table: per scenario and overall one row for ours and, when run, one for OMPL."""
+    ompl = report.get("ompl")
+    table = Table(Column("scenario", no_wrap=True), "planner", "solved", "median ms", "p95 ms", "path m",
+                  "certify ms", "colliding", *(("speed-up median / p95",) if ompl else ()),
+                  title=f"{report['settings']['planner']} on {report['problems']}")
+    for name in [*report["scenarios"], "overall"]:
+        pick = (lambda part: part["overall"] if name == "overall" else part["scenarios"][name])  # noqa: E731
+        label = "[bold]overall[/]" if name == "overall" else name
+        rows = [("ours", pick(report))] + ([("OMPL", pick(ompl))] if ompl else [])
+        for k, (planner, s) in enumerate(rows):
+            cells = [label if k == 0 else "", planner, f"{s['solved']}/{s['total']}", _ms(s["median_ms"]),
+                     _ms(s["p95_ms"]), _ms(s["path_length"]), _ms(s["certify_median_ms"]), str(s["colliding_paths"])]
+            if ompl:
+                r = pick({"overall": report["ratios"], "scenarios": report["ratios"]["scenarios"]})
+                cells.append(f"{_x(r['median_speedup'])} / {_x(r['p95_speedup'])}" if k == 0 else "")
+            table.add_row(*cells, end_section=k == len(rows) - 1 and bool(ompl))
+    console.print(table)
+    statuses = ", ".join(f"{k} {v}" for k, v in report["overall"]["statuses"].items())
+    console.print(f"ours: {statuses}. Times: search + simplification, over solved problems; path m: "
+                  "workspace-weighted length; colliding: returned paths the exact meshes reject"
+                  + ("; speed-up: OMPL's time / ours" if ompl else ""))

@@ -1,0 +1,194 @@
+"""``prehensile plan SCENE``: a collision-free path for one robot of a YAML scene.
+
+The start is the robot's configuration in the scene; the goal comes from ``--goal`` or the
+robot's ``goal:`` entry in the scene file (:func:`~prehensile.scene.files.robot_goals`). The
+planned joints are ``--chain``'s, else the joints the scene's goal names, else all of the
+robot's; joints not planned stay at their start values. The world is the scene's obstacles
+and objects plus the other robots at their configurations.
+
+Writes to ``--out``: ``path.json`` (status, joint names, waypoints, statistics), on success
+``trajectory.json`` (time-optimal, rest to rest at each waypoint) and always ``plan.png``
+(the robot at the start, a few waypoints and the goal). Exit codes: 0 path found, 1 no path
+(the status says why, e.g. ``invalid_goal`` for a goal in collision), 2 bad input.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+from typing import List, Optional
+
+import numpy as np
+import typer
+
+from prehensile.cli.app import app, console, handles_errors
+from prehensile.errors import PrehensileError, SceneError
+from prehensile.scene.scene import PlacedRobot, Scene
+
+EXIT_NO_PATH = 1
+PICTURE_WAYPOINTS = 3  # intermediate waypoints drawn besides start and goal
+
+
+def scene_path(scene: str) -> Path:
+    """A scene file path, or the path of the bundled scene of that name."""
+    from prehensile.scene.files import bundled_scene_path, bundled_scenes
+
+    path = Path(scene)
+    if path.is_file():
+        return path
+    if scene in bundled_scenes():
+        return bundled_scene_path(scene)
+    raise SceneError(f"{scene}: scene file not found; bundled scenes: {', '.join(bundled_scenes())}")
+
+
+def choose_robot(scene: Scene, name: str | None, goals: dict) -> PlacedRobot:
+    """The robot named ``name``; by default the only robot, or the only one with a goal."""
+    names = [r.name for r in scene.robots]
+    if name is not None:
+        if name not in names:
+            raise SceneError(f"{scene.source}: no robot '{name}'; robots: {', '.join(names) or '(none)'}")
+        return scene.robots[names.index(name)]
+    candidates = [r for r in scene.robots if r.name in goals] if len(scene.robots) > 1 else list(scene.robots)
+    if len(candidates) != 1:
+        raise SceneError(f"{scene.source}: give --robot; robots: {', '.join(names) or '(none)'}")
+    return candidates[0]
+
+
+def goal_configuration(robot: PlacedRobot, joints: list[str], values: list[str] | None,
+                       scene_goal: dict[str, float] | None) -> np.ndarray:
+    """q (dof,): the start with the planned joints at the goal (command line, else scene).
+
+    Raises:
+        PrehensileError: no goal, a value count that differs from the planned joints, a
+            non-number or a value outside the joint's limits.
+    """
+    model = robot.model
+    if values:
+        try:
+            numbers = [float(v) for v in values]
+        except ValueError:
+            raise PrehensileError(f"--goal: expected numbers (rad or m), got {' '.join(values)}") from None
+        if len(numbers) != len(joints):
+            raise PrehensileError(f"--goal: expected {len(joints)} values, one per planned joint "
+                                  f"({', '.join(joints)}), got {len(numbers)}")
+        goal = dict(zip(joints, numbers))
+    elif scene_goal:
+        goal = scene_goal
+    else:
+        raise PrehensileError(f"robot '{robot.name}': no goal; give --goal with {len(joints)} values "
+                              f"({', '.join(joints)}) or a 'goal:' entry in the scene file")
+    q = model.configuration_from_dict(goal, robot.configuration)
+    for joint, value in goal.items():
+        i = model.joint_index(joint)
+        if not (np.isfinite(value) and model.lower[i] - 1e-9 <= value <= model.upper[i] + 1e-9):
+            raise PrehensileError(f"goal: {joint} = {value:.6g} is outside its limits "
+                                  f"[{model.lower[i]:.6g}, {model.upper[i]:.6g}]")
+    return q
+
+
+def plan_report(result, ctx, scene: Path, robot: PlacedRobot, q_goal: np.ndarray, planner: str, seed: int) -> dict:
+    """The JSON of ``path.json``: start, goal and waypoints in the planned joints, the other
+    joints' values, status and statistics."""
+    space = ctx.space
+    fixed = [j for j in robot.model.joint_names if j not in space.joint_names]
+    return {
+        "scene": str(scene), "robot": robot.name, "planner": planner, "seed": seed, "status": result.status.value,
+        "joint_names": list(space.joint_names), "start": space.active(robot.configuration).tolist(),
+        "goal": space.active(q_goal).tolist(),
+        "waypoints": space.active(result.path).tolist() if result.success else [],
+        "fixed_joints": {j: float(space.q_ref[robot.model.joint_index(j)]) for j in fixed},
+        "path_length_m": space.path_length(space.active(result.path)) if result.success else None,
+        "stats": dataclasses.asdict(result.stats),
+    }
+
+
+def picture_scene(scene: Scene, robot: PlacedRobot, configurations: np.ndarray) -> Scene:
+    """``scene`` with ``robot`` replaced by copies at each configuration (N, dof)."""
+    labels = ["start"] + [f"waypoint {k}" for k in range(1, len(configurations) - 1)] + ["goal"]
+    copies = tuple(dataclasses.replace(robot, name=f"{robot.name} ({label})", q=q)
+                   for label, q in zip(labels, configurations))
+    others = tuple(r for r in scene.robots if r.name != robot.name)
+    return dataclasses.replace(scene, robots=copies + others)
+
+
+def write_outputs(result, context, scene: Scene, robot: PlacedRobot, report: dict, out: Path) -> list[Path]:
+    """Write path.json, trajectory.json (on success) and plan.png to ``out``; returns the paths."""
+    from prehensile.planning.trajectory import model_limits, time_parameterize
+    from prehensile.storage import atomic_write_json
+    from prehensile.viz import render_scene
+
+    written = [atomic_write_json(out / "path.json", report)]
+    if result.success:
+        space = context.space
+        trajectory = time_parameterize(space.active(result.path), *model_limits(robot.model, space.indices),
+                                       joint_names=space.joint_names)
+        written.append(atomic_write_json(out / "trajectory.json", trajectory.to_dict()))
+        inner = result.path[1:-1]
+        picks = inner[np.linspace(0, len(inner) - 1, min(PICTURE_WAYPOINTS, len(inner))).round().astype(int)]
+        shown = np.concatenate([result.path[:1], picks, result.path[-1:]])
+        title = (f"{robot.name} from start (blue-grey) to goal: {len(result.path)} waypoints, "
+                 f"{report['path_length_m']:.2f} m, {trajectory.duration:.2f} s")
+    else:
+        shown = context.space.full(np.array([report["start"], report["goal"]]))
+        title = f"{robot.name}: no path ({result.status.value}); start and goal shown"
+    written.append(render_scene(picture_scene(scene, robot, shown), out / "plan.png", title=title))
+    return written
+
+
+@app.command("plan", context_settings={"allow_extra_args": True, "ignore_unknown_options": True})
+@handles_errors
+def plan(
+    ctx: typer.Context,
+    scene: str = typer.Argument(..., help="YAML scene file or bundled scene name (e.g. plan_demo)."),
+    robot: Optional[str] = typer.Option(None, "--robot", help="Robot of the scene (default: the only one, "
+                                        "or the only one with a goal)."),
+    chain: Optional[str] = typer.Option(None, "--chain", help="Plan this chain's joints (default: the joints "
+                                        "of the scene's goal, else all)."),
+    goal: Optional[List[str]] = typer.Option(None, "--goal", help="Goal values, one per planned joint (rad or m): "
+                                             "--goal v1 v2 ... (default: the scene's goal)."),
+    planner: str = typer.Option("rrt_connect", "--planner", help="Planner."),
+    budget: float = typer.Option(1.0, "--budget", help="Search time limit (s)."),
+    seed: int = typer.Option(0, "--seed", help="Random seed."),
+    out: Path = typer.Option(Path("prehensile-plan"), "--out", help="Folder for path.json, trajectory.json, plan.png."),
+) -> None:
+    """Plan from the robot's scene configuration to a goal; exit 0 found, 1 no path, 2 bad input."""
+    from prehensile.benchmarking.mbm import PLANNERS
+    from prehensile.planning import PlanningContext, RRTConnectSettings, rrt_connect
+    from prehensile.scene.check import robot_obstacles
+    from prehensile.scene.files import load_scene, robot_goals
+
+    if ctx.args and not goal:
+        raise PrehensileError(f"unexpected arguments {' '.join(ctx.args)}; give goal values after --goal")
+    if planner not in PLANNERS:
+        raise PrehensileError(f"--planner: unknown planner '{planner}'; valid: {', '.join(PLANNERS)}")
+    if not budget > 0:
+        raise PrehensileError(f"--budget: must be positive (s), got {budget}")
+    path = scene_path(scene)
+    loaded = load_scene(path)
+    goals = robot_goals(path, loaded)
+    placed = choose_robot(loaded, robot, goals)
+    model = placed.model
+    scene_goal = goals.get(placed.name)
+    if chain is not None:
+        joints = list(model.chain(chain).joint_names)
+    elif scene_goal:
+        joints = list(scene_goal)
+    else:
+        joints = list(model.joint_names)
+    values = list(goal or []) + list(ctx.args)
+    q_goal = goal_configuration(placed, joints, values, scene_goal)
+    q_start = placed.configuration
+    obstacles = loaded.collision_obstacles() + [o for r in loaded.robots if r.name != placed.name
+                                                for o in robot_obstacles(r)]
+    context = PlanningContext(model, obstacles, joints=joints, q_ref=q_start, T_world_base=placed.T_world_base)
+    result = rrt_connect(context, q_start, q_goal, settings=RRTConnectSettings(time_budget_s=budget),
+                         rng=np.random.default_rng(seed))
+    report = plan_report(result, context, path, placed, q_goal, planner, seed)
+    written = write_outputs(result, context, loaded, placed, report, out)
+    stats = result.stats
+    console.print(f"status: [{'green' if result.success else 'bold red'}]{result.status.value}[/]  "
+                  f"search {1e3 * stats.plan_time_s:.2f} ms, simplify {1e3 * stats.simplify_time_s:.2f} ms, "
+                  f"certify {1e3 * stats.certify_time_s:.2f} ms, {len(result.path)} waypoints")
+    console.print("wrote " + ", ".join(str(p) for p in written))
+    raise typer.Exit(0 if result.success else EXIT_NO_PATH)
+

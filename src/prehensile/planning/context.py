@@ -1,0 +1,306 @@
+"""Planning context: the robot, the world, grasped objects and the compiled checkers, in one place.
+
+A :class:`PlanningContext` holds what every planner query needs: the configuration space of
+the planned joints, the sphere checker (planning), the exact checker (certification) and the
+arrays the compiled planners run on. Grasped objects (:class:`AttachedObject`) become extra
+links fixed to the link that holds them, so both checkers, the metric and the motion bounds
+cover them without special cases.
+
+Motion bounds ("free bubbles", Vahrenkamp 2011 C.2 after Quinlan 1995): for every ball group
+(a link) and every self pair the context keeps a row of per-variable weights W (m per rad or
+m per m) such that moving the configuration by dq moves the group's balls (or one group
+relative to the other) by at most ``W @ |dq|``. A pair's row covers only the joints that move
+one of its links but not both (the joints above both move them rigidly together), so the
+bound is far tighter than the workspace-weighted metric for links close in the chain.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from typing import Sequence
+
+import numpy as np
+
+from prehensile.collision import sphere_kernels as SK
+from prehensile.collision.acm import allowed_collision_matrix, rigid_bodies
+from prehensile.collision.sphere_checker import SphereChecker
+from prehensile.collision.sphere_fit import cover_geometries
+from prehensile.collision.spheres import SphereModel, generate_sphere_model
+from prehensile.collision.world import Obstacle
+from prehensile.errors import PrehensileError
+from prehensile.model.geometry import Geometry, Shape
+from prehensile.model.robot_model import FIXED, PRISMATIC, REVOLUTE, RobotModel
+from prehensile.planning.cspace import ConfigurationSpace
+
+
+@dataclass(frozen=True, eq=False)
+class AttachedObject:
+    """A grasped object that moves with a robot link.
+
+    It collides with the world and with every link except ``link``'s rigid body (the links
+    fixed to it, e.g. the hand on the flange) and ``touch_links`` (e.g. the fingers).
+
+    Attributes:
+        name: object name (unique among the attached objects).
+        link: the link that holds it.
+        shape: a shape in the object frame, a :class:`Geometry` or a tuple of them.
+        T_link_object: (4, 4) pose of the object frame in the link frame.
+        touch_links: further links allowed to touch it.
+    """
+
+    name: str
+    link: str
+    shape: Shape | Geometry | tuple[Geometry, ...]
+    T_link_object: np.ndarray = field(default_factory=lambda: np.eye(4))
+    touch_links: tuple[str, ...] = ()
+
+    def geometries(self) -> tuple[Geometry, ...]:
+        """The object's geometries in the object frame."""
+        if isinstance(self.shape, Geometry):
+            return (self.shape,)
+        if isinstance(self.shape, tuple):
+            return self.shape
+        return (Geometry(self.shape, name=self.name),)
+
+
+def attach_objects(model: RobotModel, spheres: SphereModel, acm: np.ndarray, attached: Sequence[AttachedObject],
+                   balls: int = 16) -> tuple[RobotModel, SphereModel, np.ndarray]:
+    """The model, sphere model and ACM with one fixed link ``attached/<name>`` per object.
+
+    The new links come after the model's links (the variables are unchanged). Their balls
+    cover the object's geometry (:func:`~prehensile.collision.sphere_fit.cover_geometries`,
+    ``balls`` per mesh).
+    """
+    if not attached:
+        return model, spheres, acm
+    names = [f"attached/{obj.name}" for obj in attached]
+    if len(set(names)) != len(names) or set(names) & set(model.link_names):
+        raise PrehensileError(f"attached objects need unique names, got {[obj.name for obj in attached]}")
+    n, k = model.n_links, len(attached)
+    parents = [model.link_index(obj.link) for obj in attached]
+    origins = []
+    for obj in attached:
+        T = np.asarray(obj.T_link_object, dtype=float)
+        if T.shape != (4, 4) or not np.all(np.isfinite(T)):
+            raise PrehensileError(f"attached object '{obj.name}': T_link_object must be a finite (4, 4) pose")
+        origins.append(T)
+    geometries = tuple(obj.geometries() for obj in attached)
+    augmented = dataclasses.replace(
+        model, link_names=model.link_names + tuple(names), link_joint_names=model.link_joint_names + tuple(names),
+        link_parent=np.concatenate([model.link_parent, parents]), joint_type=np.concatenate([model.joint_type, [FIXED] * k]),
+        joint_origin=np.concatenate([model.joint_origin, origins]),
+        joint_axis=np.concatenate([model.joint_axis, np.zeros((k, 3))]),
+        joint_q_index=np.concatenate([model.joint_q_index, [-1] * k]),
+        joint_multiplier=np.concatenate([model.joint_multiplier, np.ones(k)]),
+        joint_offset=np.concatenate([model.joint_offset, np.zeros(k)]),
+        visuals=model.visuals + geometries, collisions=model.collisions + geometries)
+    centers, radii, links = [spheres.centers], [spheres.radii], [spheres.sphere_link]
+    for i, geoms in enumerate(geometries):
+        c, r = cover_geometries(geoms, n_spheres=balls)
+        centers.append(c), radii.append(r), links.append(np.full(len(r), n + i))
+    augmented_spheres = SphereModel(augmented.link_names, np.concatenate(links), np.concatenate(centers),
+                                    np.concatenate(radii))
+    body = rigid_bodies(model)
+    allowed = np.zeros((n + k, n + k), dtype=bool)
+    allowed[:n, :n] = acm
+    for i, obj in enumerate(attached):
+        touching = body == body[parents[i]]
+        touching[[model.link_index(name) for name in obj.touch_links]] = True
+        allowed[n + i, :n] = allowed[:n, n + i] = touching
+        for j in range(k):  # objects held by the same body may touch each other
+            allowed[n + i, n + j] = body[parents[i]] == body[parents[j]]
+    return augmented, augmented_spheres, allowed
+
+
+def ball_joint_weights(model: RobotModel, links: np.ndarray, centers: np.ndarray, radii: np.ndarray) -> np.ndarray:
+    """(B, L) W[b, k]: how fast any point of ball b (on link ``links[b]``, centre (B, 3) in the
+    link frame, radius (B,)) moves per unit motion of the joint of link k (m/rad or m/m; 0
+    unless k is on the ball's path to the root).
+
+    A revolute joint moves a point at its distance from the joint axis. While only fixed
+    joints lie between, that is the ball centre's distance from the axis plus the radius;
+    above a moving joint m it is bounded by the distance of m's origin from the axis plus a
+    bound on the distance from m's origin to the ball (joint offsets and prismatic travel summed
+    on the way down, triangle inequality), so it holds in every configuration. Prismatic: 1.
+    Mimic multipliers scale both.
+    """
+    travel = np.zeros(model.n_links)
+    for i in np.flatnonzero(model.joint_type == PRISMATIC):
+        qi = model.joint_q_index[i]
+        travel[i] = abs(model.joint_multiplier[i]) * max(abs(model.lower[qi]), abs(model.upper[qi])) \
+            + abs(model.joint_offset[i])
+    W = np.zeros((len(links), model.n_links))
+    for ball, (link, center, radius) in enumerate(zip(links, np.asarray(centers, float), radii)):
+        # reach: bound on |p - origin of link k|; point: ball centre in link k's frame while the
+        # path down to it is rigid; else anchor: the nearest moving joint's origin, below: reach from it
+        reach, point, anchor, below, k = float(np.linalg.norm(center) + radius), center, None, 0.0, int(link)
+        while k >= 0:
+            kind, T = model.joint_type[k], model.joint_origin[k]
+            if kind == REVOLUTE:
+                axis = model.joint_axis[k] / np.linalg.norm(model.joint_axis[k])
+                x, extra = (point, radius) if anchor is None else (anchor, below)
+                W[ball, k] = abs(model.joint_multiplier[k]) * (np.linalg.norm(x - (x @ axis) * axis) + extra)
+            elif kind == PRISMATIC:
+                W[ball, k] = abs(model.joint_multiplier[k])
+            if kind == FIXED:
+                point, anchor = (T[:3, :3] @ point + T[:3, 3], None) if anchor is None else \
+                    (point, T[:3, :3] @ anchor + T[:3, 3])
+            else:
+                anchor, below = T[:3, 3], reach + travel[k]
+            reach += float(np.linalg.norm(T[:3, 3]) + travel[k])
+            k = int(model.link_parent[k])
+    return W
+
+
+def motion_weights(model: RobotModel, centers: np.ndarray, radii: np.ndarray, pairs: np.ndarray) -> np.ndarray:
+    """(P, dof) rows W with ``W[p] @ |dq|`` bounding the relative motion of pair p (m).
+
+    Args:
+        centers, radii: per-link bounding balls (link frames), radius < 0 for links without.
+        pairs: (P, 2) link indices (a, b); b = -1 means the world (fixed).
+
+    A point of link a moves in the frame of the deepest common ancestor of a and b only
+    through the joints between that ancestor and a, so the relative speed of a point of a and
+    a point of b is at most the sum of their weights over the joints that move exactly one of
+    them (variables shared by mimic joints add up).
+    """
+    has = np.asarray(radii) >= 0
+    Wl = np.zeros((model.n_links, model.n_links))
+    Wl[has] = ball_joint_weights(model, np.flatnonzero(has), np.asarray(centers)[has], np.asarray(radii)[has])
+    above = [set(model.path_to_root(i)) for i in range(model.n_links)]
+    out = np.zeros((len(pairs), model.dof))
+    for p, (a, b) in enumerate(np.asarray(pairs, dtype=np.int64).reshape(-1, 2)):
+        only_a = above[a] - (above[b] if b >= 0 else set())
+        only_b = above[b] - above[a] if b >= 0 else set()
+        for link, joints in ((a, only_a), (b, only_b)):
+            for k in joints:
+                if model.joint_q_index[k] >= 0:
+                    out[p, model.joint_q_index[k]] += Wl[link, k]
+    return out
+
+
+class PlanningContext:
+    """Everything a planner query needs about one robot in one world.
+
+    Args:
+        model: the robot.
+        obstacles: shapes fixed in the world.
+        joints: the planned joints: a chain name, joint names, or None for all variables.
+        q_ref: (dof,) values of the joints not planned (rad or m); neutral if None.
+        T_world_base: (4, 4) pose of the robot root; identity if None.
+        spheres: the robot's sphere model (planning); default generated from its geometry.
+        acm: (L, L) allowed-collision matrix of ``model``; default from the model (SRDF).
+        attached: grasped objects moving with their links.
+        resolution: edge-check resolution (m): where the sphere clearance does not prove a
+            segment free, it is sampled so that no ball moves more than this between checks.
+        certify_resolution: the same for the exact certification (m).
+
+    Attributes:
+        space: :class:`ConfigurationSpace` of the planned joints (its model includes the
+            attached objects as links; variables are the same as ``model``'s).
+        spheres: :class:`SphereChecker` (robot balls, objects included, vs world and self).
+        collision_model, sphere_model, acm: the model, balls and ACM with the objects attached.
+    """
+
+    def __init__(self, model: RobotModel, obstacles: Sequence[Obstacle], joints: Sequence[str] | str | None = None,
+                 q_ref: np.ndarray | None = None, T_world_base: np.ndarray | None = None,
+                 spheres: SphereModel | None = None, acm: np.ndarray | None = None,
+                 attached: Sequence[AttachedObject] = (), resolution: float = 0.005,
+                 certify_resolution: float = 0.002) -> None:
+        if not (resolution > 0 and certify_resolution > 0):
+            raise PrehensileError(f"resolutions must be positive, got {resolution}, {certify_resolution}")
+        self.model = model
+        self.obstacles = list(obstacles)
+        self.attached = tuple(attached)
+        self.resolution = float(resolution)
+        self.certify_resolution = float(certify_resolution)
+        self.T_world_base = np.eye(4) if T_world_base is None else np.ascontiguousarray(T_world_base, dtype=float)
+        base_spheres = generate_sphere_model(model) if spheres is None else spheres
+        base_acm = allowed_collision_matrix(model) if acm is None else np.asarray(acm, dtype=bool)
+        self.collision_model, self.sphere_model, self.acm = attach_objects(model, base_spheres, base_acm, self.attached)
+        centers, radii = self.sphere_model.link_bounds()
+        self.space = ConfigurationSpace(self.collision_model, joints, q_ref, centers=centers, radii=radii)
+        self.spheres = SphereChecker(self.collision_model, self.obstacles, self.T_world_base, self.sphere_model, self.acm)
+        self.motion = self._motion_tables()
+        """(Wpath (S, D), qpath (S, D), scales, queue (Q, 2), q (dof,)) for
+        :func:`prehensile.planning.kernels.motion_free`: per ball of the sphere checker the
+        weights and variables of the moving joints on its path (root first), the scale arrays
+        of :func:`~prehensile.collision.sphere_kernels.clearance`, work arrays (see
+        :meth:`motion_arrays`)."""
+        self.scratch = SK.make_scratch(self.spheres.data)
+        self.counters = np.zeros(1, dtype=np.int64)
+        self._exact = None
+        self._certifier = None
+
+    def _motion_tables(self) -> tuple:
+        model, checker = self.collision_model, self.spheres
+        granges, pairs = checker.data[9], checker.data[-1]
+        links = np.concatenate([np.full(b - a, link) for link, (a, b) in zip(checker.group_links, granges)]
+                               ).astype(np.int64) if len(granges) else np.zeros(0, dtype=np.int64)
+        order = np.concatenate([np.arange(*self.sphere_model.link_ranges()[link]) for link in checker.group_links]
+                               ).astype(np.int64) if len(granges) else np.zeros(0, dtype=np.int64)
+        W = ball_joint_weights(model, links, self.sphere_model.centers[order], self.sphere_model.radii[order])
+        moving = np.isin(model.joint_type, (REVOLUTE, PRISMATIC))
+        paths = [[k for k in reversed(model.path_to_root(int(link))) if moving[k]] for link in range(model.n_links)]
+        depth = max((len(p) for p in paths), default=0)
+        Wpath, qpath = np.zeros((len(links), depth)), np.full((len(links), depth), -1, dtype=np.int64)
+        for s, link in enumerate(links):
+            path = paths[link]
+            Wpath[s, :len(path)], qpath[s, :len(path)] = W[s, path], model.joint_q_index[path]
+        group_link = checker.group_links
+        pcut = np.array([len(set(paths[group_link[i]]) & set(paths[group_link[j]])) for i, j in pairs], dtype=np.int64)
+        scales = (np.empty(len(granges)), np.empty((len(pairs), 2)), np.empty((len(links), depth + 1)), pcut)
+        span = np.where(np.isfinite(model.upper - model.lower), model.upper - model.lower, 2 * np.pi)
+        reach = np.zeros(len(links))
+        for s in range(len(links)):
+            reach[s] = Wpath[s] @ np.where(qpath[s] >= 0, span[qpath[s]], 0.0)
+        self._longest = float(np.max(reach, initial=0.0))  # farthest a ball can move on any segment
+        return Wpath, qpath, scales, np.empty((0, 2)), np.empty(model.dof)
+
+    def motion_arrays(self, resolution: float) -> tuple:
+        """:attr:`motion` with a bisection queue long enough for edge checks at ``resolution`` (m):
+        open intervals are separated by covered stretches of at least one resolution step."""
+        need = int(self._longest / resolution) + 8
+        if len(self.motion[3]) < need:
+            self.motion = self.motion[:3] + (np.empty((need, 2)),) + self.motion[4:]
+        return self.motion
+
+    @property
+    def exact(self):
+        """:class:`~prehensile.collision.exact.ExactChecker` on the true geometry (built on first use)."""
+        if self._exact is None:
+            from prehensile.collision.exact import ExactChecker
+
+            self._exact = ExactChecker(self.collision_model, self.obstacles, self.T_world_base, self.acm)
+        return self._exact
+
+    def is_valid(self, q: np.ndarray) -> np.ndarray:
+        """(*batch,) bool: q (*batch, dof) within the joint limits and free (sphere model)."""
+        q = self.model.check_configuration(q)
+        return self.model.within_limits(q) & self.spheres.is_free(q)
+
+    def check_motion(self, qa: np.ndarray, qb: np.ndarray, resolution: float | None = None) -> bool:
+        """True if both ends are valid and the straight segment qa -> qb (full configurations
+        (dof,)) is free for the sphere model, proven by clearance bubbles or sampled at
+        ``resolution`` (m, default the context's) where the clearance is small."""
+        from prehensile.planning import kernels
+
+        qa = self.model.check_configuration(qa, "qa")
+        qb = self.model.check_configuration(qb, "qb")
+        if qa.shape != (self.model.dof,) or qb.shape != (self.model.dof,):
+            raise PrehensileError(f"check_motion: expected two configurations ({self.model.dof},)")
+        if self.spheres.static_hit or not (self.model.within_limits(qa) and self.model.within_limits(qb)):
+            return False
+        res = self.resolution if resolution is None else float(resolution)
+        return kernels.motion_free(qa, qb, res, self.spheres.data, self.scratch, self.motion_arrays(res),
+                                   self.counters, kernels.NO_LIMIT) == kernels.FREE
+
+    @property
+    def certifier(self):
+        """The exact path certifier (:class:`~prehensile.planning.certify.ExactCertifier`), built on first use."""
+        if self._certifier is None:
+            from prehensile.planning.certify import ExactCertifier
+
+            self._certifier = ExactCertifier(self.collision_model, self.obstacles, self.T_world_base, self.acm)
+        return self._certifier

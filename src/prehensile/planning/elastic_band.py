@@ -1,0 +1,176 @@
+r"""Elastic-band path smoothing (Quinlan 1995; Vahrenkamp 2011, §B.3, Alg. 35).
+
+The waypoints of a path form a band. Every interior waypoint c_i feels an internal force
+that tightens the band and an external force that pushes the robot away from obstacles
+closer than ``d_min``:
+
+.. math::
+
+    f_{int}(i) = \frac{c_{i+1} - c_i}{\lVert c_{i+1} - c_i \rVert}
+               + \frac{c_{i-1} - c_i}{\lVert c_{i-1} - c_i \rVert},
+    \qquad
+    f_{ext}(i) = \sum_{(p_r, p_o):\, d < d_{min}} J_{p_r}^{+}(c_i)\,(d_{min} - d)
+                 \frac{p_r - p_o}{\lVert p_r - p_o \rVert},
+
+    c_i \leftarrow c_i + k_{int} f_{int}(i) + k_{ext} f_{ext}(i),
+
+in the planned joints, where (p_r, p_o) are the closest points of a robot link and an
+obstacle at distance d (exact geometry, :meth:`ExactChecker.closest_points`) and J_{p_r} is
+the (3, n) position Jacobian of the robot point. The thesis prints the external force with
+``d = p_obst - p_rob`` (it would pull the robot *towards* the obstacle) and the update as
+``c_i <- k f(i)``; both are corrected here. Its global gain k is folded into k_int and k_ext.
+
+Choices the thesis leaves open:
+
+* Every (link, obstacle) pair closer than ``d_min`` pushes, not only the closest one, so the
+  band does not oscillate between two near links (the thesis ignores ties).
+* J⁺ is the damped least-squares inverse ``Jᵀ (J Jᵀ + λ² I)⁻¹``, bounded near singularities.
+* Waypoints are updated in order (Gauss-Seidel), each with its current neighbours. An update
+  is kept only if the new waypoint is valid and both adjacent edges pass
+  ``ctx.check_motion``; otherwise the waypoint stays. So a valid path stays valid, and the
+  start and goal never move.
+* The stopping rule bounds the largest step of an iteration, not the sum over waypoints
+  (Σ‖f(i)‖ < δ in the thesis), which would depend on how finely the path is subdivided.
+* Before the first iteration edges are subdivided to ``max_spacing`` (workspace-weighted
+  distance), since a band of few waypoints cannot bend.
+* Self-collision pairs exert no force; pairs already penetrating in the exact model (d <= 0)
+  are skipped, as their witness points give no reliable direction.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+import numpy as np
+
+from prehensile.errors import PrehensileError
+from prehensile.kinematics import forward_kinematics, frame_jacobian
+from prehensile.spatial import make_pose
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class ElasticBandSettings:
+    """Gains and stopping rule of :func:`elastic_band`.
+
+    Attributes:
+        k_int: tightening step (rad or m per iteration) along the sum of unit vectors to the
+            neighbours (at most 2 k_int).
+        k_ext: gain (dimensionless) on the repulsion; 1 would move a single close point to
+            ``d_min`` to first order in one iteration.
+        d_min: clearance (m) below which obstacles push.
+        tolerance: δ (rad or m): stop when no waypoint's step in an iteration is longer (or
+            when no waypoint could move).
+        max_iterations: iteration cap.
+        max_spacing: subdivide edges longer than this workspace-weighted distance (m,
+            :meth:`ConfigurationSpace.distance`) first; None keeps the waypoints.
+        damping: λ (m/rad) of the damped pseudoinverse.
+    """
+
+    k_int: float = 0.01
+    k_ext: float = 0.5
+    d_min: float = 0.05
+    tolerance: float = 1e-3
+    max_iterations: int = 100
+    max_spacing: float | None = 0.05
+    damping: float = 1e-2
+
+    def __post_init__(self) -> None:
+        for name in ("k_int", "k_ext", "tolerance", "damping"):
+            if not getattr(self, name) >= 0:
+                raise PrehensileError(f"ElasticBandSettings.{name} must be >= 0, got {getattr(self, name)}")
+        if not self.d_min > 0 or self.max_iterations < 0 or (self.max_spacing is not None and not self.max_spacing > 0):
+            raise PrehensileError(f"ElasticBandSettings: d_min and max_spacing must be positive and max_iterations "
+                                  f">= 0, got {self}")
+
+
+def _subdivide(ctx, path: np.ndarray, spacing: float) -> np.ndarray:
+    """Path (M, dof) with points inserted on each straight edge so that no edge is longer than spacing (m)."""
+    out = [path[:1]]
+    for a, b in zip(path[:-1], path[1:]):
+        steps = max(int(np.ceil(float(ctx.space.distance(ctx.space.active(a), ctx.space.active(b))) / spacing)), 1)
+        out.append(a + np.linspace(0.0, 1.0, steps + 1)[1:, None] * (b - a))
+    return np.concatenate(out)
+
+
+def internal_force(prev: np.ndarray, current: np.ndarray, following: np.ndarray) -> np.ndarray:
+    """Tightening force (n,): the sum of unit vectors from ``current`` to its neighbours (n,)."""
+    force = np.zeros_like(current)
+    for other in (prev, following):
+        length = np.linalg.norm(other - current)
+        if length > 0:
+            force += (other - current) / length
+    return force
+
+
+def external_force(ctx, q: np.ndarray, d_min: float, damping: float = 1e-2) -> np.ndarray:
+    """Repulsion (n,) in the planned joints at configuration q (dof,), pushing every robot link
+    closer than d_min (m) to an obstacle away from it (see the module docstring)."""
+    exact, indices = ctx.exact, ctx.space.indices
+    model = exact.model  # the robot with any attached objects as links
+    force = np.zeros(len(indices))
+    pairs = [p for p in exact.closest_points(q, max_distance=d_min) if 0 < p.distance < d_min]
+    if not pairs:
+        return force
+    poses = forward_kinematics(model, q, exact.T_world_base)
+    for pair in pairs:
+        away = pair.point_on_robot - pair.point_on_other
+        norm = np.linalg.norm(away)
+        if norm <= 1e-12:
+            continue
+        T = poses[model.link_index(pair.link)]
+        point = T[:3, :3].T @ (pair.point_on_robot - T[:3, 3])
+        _, jac = frame_jacobian(model, q, pair.link, make_pose(position=point), T_world_base=exact.T_world_base)
+        J = jac[:3, indices]
+        push = (d_min - pair.distance) * away / norm
+        force += J.T @ np.linalg.solve(J @ J.T + damping**2 * np.eye(3), push)
+    return force
+
+
+def elastic_band(ctx, path: np.ndarray, settings: ElasticBandSettings = ElasticBandSettings()) -> np.ndarray:
+    """Smooth a valid path and push it away from obstacles with an elastic band.
+
+    Args:
+        ctx: a :class:`~prehensile.planning.context.PlanningContext` (model, configuration
+            space, exact checker, validity and motion checks).
+        path: (N, dof) full configurations (rad or m) joined by straight, valid edges.
+        settings: :class:`ElasticBandSettings`.
+
+    Returns:
+        (M, dof) the band, M >= N (edges subdivided to ``settings.max_spacing``); same first
+        and last waypoints; every waypoint valid and every edge accepted by ``ctx.check_motion``
+        (given a valid input path). Joints outside ``ctx.space`` keep their values.
+
+    Raises:
+        PrehensileError: path is not a finite (N, dof) array.
+    """
+    path = np.asarray(path, dtype=float)
+    if path.ndim != 2 or len(path) == 0 or not np.all(np.isfinite(path)):
+        raise PrehensileError(f"elastic_band: path must be a finite (N, dof) array, got shape {path.shape}")
+    path = ctx.model.check_configuration(path).copy()
+    if settings.max_spacing is not None:
+        path = _subdivide(ctx, path, settings.max_spacing)
+    space = ctx.space
+    band = space.active(path)
+    for iteration in range(settings.max_iterations):
+        largest, accepted = 0.0, 0
+        for i in range(1, len(band) - 1):
+            step = settings.k_int * internal_force(band[i - 1], band[i], band[i + 1])
+            if settings.k_ext > 0:
+                step += settings.k_ext * external_force(ctx, path[i], settings.d_min, settings.damping)
+            size = float(np.linalg.norm(step))
+            largest = max(largest, size)
+            if size == 0:
+                continue
+            candidate = np.clip(band[i] + step, space.lower, space.upper)
+            q = path[i].copy()
+            q[space.indices] = candidate
+            if ctx.is_valid(q) and ctx.check_motion(path[i - 1], q) and ctx.check_motion(q, path[i + 1]):
+                band[i], path[i] = candidate, q
+                accepted += 1
+        log.debug("elastic band iteration %d: largest step %.4g, %d waypoints moved", iteration, largest, accepted)
+        if largest < settings.tolerance or accepted == 0:
+            break
+    return path

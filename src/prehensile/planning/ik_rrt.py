@@ -1,0 +1,191 @@
+"""IK-RRT, bimanual IK-RRT, hand-over (regrasp) IK-RRT and Multi-EEF-RRT.
+
+Vahrenkamp 2011 §4.2-4.4 (Alg. 16, 17). The goal is a workspace set (grasps of an object);
+goal configurations are sampled by a randomized IK *during* planning and all become roots of
+the goal tree of a bidirectional search. Here the bidirectional search is the compiled
+:func:`~prehensile.planning.rrt_connect.rrt_connect` with the goal configurations found so far
+as its goal set; between rounds new IK samples join the set and the round's budget doubles.
+The trees are rebuilt each round rather than kept (a compiled round costs well under a
+millisecond on typical problems, less than keeping Python-side trees would); as in the
+thesis, the search is probabilistically complete when the IK sampler is.
+
+The goal samplers: :func:`grasp_sampler` (one arm, a grasp set: IK-RRT),
+:func:`dual_arm_sampler` (both arms, sampled hip: bimanual IK-RRT, Alg. 17) and
+:func:`regrasp_sampler` (free object pose: hand-over, §4.4.2). :func:`multi_eef_rrt` runs one
+search per end effector round-robin in one thread and keeps the first success ("winner takes
+all", §4.3; the thesis uses one thread per hand).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from dataclasses import dataclass
+from typing import Callable, Sequence
+
+import numpy as np
+
+from prehensile.ik.complete import CompleteIKSettings, solve_ik_complete
+from prehensile.ik.hybrid import HybridIKSettings, ObjectRegion, solve_ik_hybrid, solve_regrasp_ik
+from prehensile.ik.jacobian import ChainSolver
+from prehensile.planning.context import PlanningContext
+from prehensile.planning.result import PlanResult, PlanStats, PlanStatus
+from prehensile.planning.rrt_connect import RRTConnectSettings, rrt_connect
+
+# a goal sampler draws one goal configuration (dof,) or None, and what it reached (grasp
+# indices, object pose, ...), within a time budget (s)
+GoalSampler = Callable[[np.random.Generator, float], tuple[np.ndarray | None, dict]]
+
+
+@dataclass(frozen=True)
+class IKRRTSettings:
+    """Settings of :func:`ik_rrt` and :func:`multi_eef_rrt`.
+
+    Attributes:
+        time_budget_s: total budget (s), IK sampling included.
+        ik_budget_s: budget of one IK sample (s).
+        first_round_s: search budget of the first round (s); it doubles every round.
+        rrt: settings of the bidirectional search (shortcutting, certification, step).
+    """
+
+    time_budget_s: float = 5.0
+    ik_budget_s: float = 0.02
+    first_round_s: float = 0.01
+    rrt: RRTConnectSettings = RRTConnectSettings()
+
+
+class _Search:
+    """One IK-RRT: goal configurations found so far and the next round's budget."""
+
+    def __init__(self, ctx: PlanningContext, q_start: np.ndarray, sampler: GoalSampler, settings: IKRRTSettings) -> None:
+        self.ctx, self.q_start, self.sampler, self.settings = ctx, q_start, sampler, settings
+        self.goals: list[np.ndarray] = []
+        self.infos: list[dict] = []
+        self.round_s = settings.first_round_s
+        self.iterations = self.nodes = self.checks = 0
+        self.search_s = self.simplify_s = self.certify_s = 0.0
+
+    def step(self, rng: np.random.Generator, deadline: float) -> PlanResult | None:
+        """Sample one goal, then search a round; a finished PlanResult, or None to go on."""
+        q, info = self.sampler(rng, min(self.settings.ik_budget_s, max(deadline - time.perf_counter(), 0.0)))
+        if q is not None and bool(self.ctx.is_valid(q)):
+            self.goals.append(q)
+            self.infos.append(info)
+        remaining = deadline - time.perf_counter()
+        if not self.goals or remaining <= 0:
+            return None
+        settings = dataclasses.replace(self.settings.rrt, time_budget_s=min(self.round_s, remaining))
+        result = rrt_connect(self.ctx, self.q_start, np.array(self.goals), settings=settings, rng=rng)
+        self.round_s *= 2.0
+        s = result.stats
+        self.iterations += s.iterations
+        self.nodes = max(self.nodes, s.nodes)
+        self.checks += s.collision_checks
+        self.search_s += s.plan_time_s
+        self.simplify_s += s.simplify_time_s
+        self.certify_s += s.certify_time_s
+        if result.status in (PlanStatus.TIMEOUT, PlanStatus.CERTIFICATION_FAILED, PlanStatus.INVALID_GOAL):
+            return None
+        goal = self.infos[result.goal_index] if result.success else {}
+        return PlanResult(result.status, result.path, self.stats(), result.goal_index,
+                          info={"goal": goal, "goal_configurations": len(self.goals)})
+
+    def stats(self, total_s: float | None = None) -> PlanStats:
+        return PlanStats(self.iterations, self.nodes, self.checks, len(self.goals),
+                         self.search_s if total_s is None else total_s, self.simplify_s, self.certify_s)
+
+
+def ik_rrt(ctx: PlanningContext, q_start: np.ndarray, sampler: GoalSampler, settings: IKRRTSettings = IKRRTSettings(),
+           rng: np.random.Generator | int | None = None) -> PlanResult:
+    """Plan from ``q_start`` to any goal configuration the IK ``sampler`` finds.
+
+    Returns:
+        :class:`PlanResult`; ``goal_index`` indexes the goal configurations sampled, ``info``
+        holds what the winning sample reached (``info["goal"]``, e.g. the grasp). TIMEOUT or
+        NO_GOAL_CONFIGURATION (IK found nothing) when the budget runs out.
+    """
+    return multi_eef_rrt(ctx, q_start, {"": sampler}, settings, rng)
+
+
+def multi_eef_rrt(ctx: PlanningContext | dict[str, PlanningContext], q_start: np.ndarray,
+                  samplers: dict[str, GoalSampler], settings: IKRRTSettings = IKRRTSettings(),
+                  rng: np.random.Generator | int | None = None) -> PlanResult:
+    """Multi-EEF-RRT: one IK-RRT per end effector, round-robin; the first path wins.
+
+    Args:
+        ctx: one context for all, or one per end effector (each hand plans its own chain).
+        samplers: end-effector name -> goal sampler for that hand.
+
+    Returns:
+        :class:`PlanResult` with ``end_effector`` the hand that grasps.
+    """
+    start = time.perf_counter()
+    deadline = start + settings.time_budget_s
+    rng = np.random.default_rng(rng)
+    contexts = ctx if isinstance(ctx, dict) else {name: ctx for name in samplers}
+    searches = {name: _Search(contexts[name], q_start, sampler, settings) for name, sampler in samplers.items()}
+    for name, search in searches.items():
+        if not bool(search.ctx.is_valid(q_start)):
+            return PlanResult(PlanStatus.INVALID_START, np.zeros((0, len(q_start))), PlanStats(), end_effector=name)
+    while time.perf_counter() < deadline:
+        for name, search in searches.items():
+            result = search.step(rng, deadline)
+            if result is not None:  # search time includes the IK sampling of every hand
+                spent = time.perf_counter() - start - result.stats.simplify_time_s - result.stats.certify_time_s
+                stats = dataclasses.replace(result.stats, plan_time_s=spent,
+                                            ik_solutions=sum(len(s.goals) for s in searches.values()))
+                return dataclasses.replace(result, stats=stats, end_effector=name)
+    found = sum(len(s.goals) for s in searches.values())
+    status = PlanStatus.TIMEOUT if found else PlanStatus.NO_GOAL_CONFIGURATION
+    first = next(iter(searches.values()))
+    stats = dataclasses.replace(first.stats(time.perf_counter() - start), ik_solutions=found)
+    return PlanResult(status, np.zeros((0, len(q_start))), stats)
+
+
+def _random_seed(solvers: Sequence[ChainSolver], q_ref: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """q_ref with the solvers' chain joints drawn uniformly (different IK solutions per call)."""
+    q = q_ref.copy()
+    for solver in solvers:
+        q[solver.var_q] = rng.uniform(solver.lower, solver.upper)
+    return q
+
+
+def grasp_sampler(ctx: PlanningContext, solver: ChainSolver, target_poses: np.ndarray, q_ref: np.ndarray) -> GoalSampler:
+    """IK-RRT goals: one arm, any of the world tool poses (k, 4, 4) (e.g. object pose x grasps)."""
+    targets = solver.targets(target_poses)
+
+    def sample(rng: np.random.Generator, budget: float):
+        result = solve_ik_complete(solver, targets, _random_seed([solver], q_ref, rng), rng,
+                                   CompleteIKSettings(time_budget_s=max(budget, 1e-6)),
+                                   is_valid=lambda q: bool(ctx.is_valid(q)))
+        return (result.q, {"grasp": result.target_index}) if result.success else (None, {})
+
+    return sample
+
+
+def dual_arm_sampler(ctx: PlanningContext, arms: Sequence[ChainSolver], target_poses: Sequence[np.ndarray],
+                     q_ref: np.ndarray, free: Sequence[str] | str | None = None) -> GoalSampler:
+    """Bimanual IK-RRT goals: both hands on their pose sets, free joints (e.g. the hip) sampled."""
+
+    def sample(rng: np.random.Generator, budget: float):
+        result = solve_ik_hybrid(arms, target_poses, free, _random_seed(arms, q_ref, rng), rng,
+                                 HybridIKSettings(time_budget_s=max(budget, 1e-6)),
+                                 is_valid=lambda q: bool(ctx.is_valid(q)))
+        return (result.q, {"grasps": result.target_indices}) if result.success else (None, {})
+
+    return sample
+
+
+def regrasp_sampler(ctx: PlanningContext, arms: Sequence[ChainSolver], grasps: Sequence[np.ndarray],
+                    region: ObjectRegion, q_ref: np.ndarray, free: Sequence[str] | str | None = None) -> GoalSampler:
+    """Hand-over goals: an object pose in ``region`` where both hands hold their grasps."""
+
+    def sample(rng: np.random.Generator, budget: float):
+        result, T_world_object = solve_regrasp_ik(arms, grasps, region, free, _random_seed(arms, q_ref, rng), rng,
+                                                  time_budget_s=max(budget, 1e-6),
+                                                  is_valid=lambda q: bool(ctx.is_valid(q)))
+        if not result.success:
+            return None, {}
+        return result.q, {"grasps": result.target_indices, "T_world_object": T_world_object}
+
+    return sample

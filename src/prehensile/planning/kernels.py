@@ -1,0 +1,168 @@
+"""Compiled planning primitives: random numbers, the weighted metric, nearest neighbours and
+motion checks with free bubbles.
+
+Motion check (:func:`motion_free`). The segment qa -> qb is parameterised by s in [0, 1].
+For every ball group g and self pair p the context holds weights W (see
+:func:`prehensile.planning.context.motion_weights`); ``W[g] @ |qb - qa|`` bounds how far the
+group's balls move over the whole segment (relative to the world, or to the pair's other
+link). The sphere kernel divides each clearance by that bound, so a configuration at s with
+scaled clearance c proves the whole stretch [s - c, s + c] free: no ball can travel farther
+than its distance to anything it may hit ("free bubbles", Quinlan 1995; Vahrenkamp 2011 C.2).
+The check tests qb first (a planner's new node), then qa, then the midpoints of the stretches
+not yet covered, breadth first (a bisection order, so a collision in the middle shows early).
+Where clearances are small, every sample covers at least half a resolution step on either
+side, i.e. the segment is sampled so that no ball moves more than ``resolution`` between
+checks (Vahrenkamp 2011 B.2). A free answer is therefore at least as strong as sampling at
+``resolution``; where the balls keep a distance it is continuous.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from prehensile.collision import sphere_kernels as SK
+
+_TINY = 1e-12  # scale of a group that does not move on a segment: it only counts if it collides
+_GOLDEN, _MIX1, _MIX2 = np.uint64(0x9E3779B97F4A7C15), np.uint64(0xBF58476D1CE4E5B9), np.uint64(0x94D049BB133111EB)
+_S30, _S27, _S31, _S11 = np.uint64(30), np.uint64(27), np.uint64(31), np.uint64(11)
+
+
+def rng_state(rng: np.random.Generator) -> np.ndarray:
+    """(1,) uint64 state of the compiled generator, drawn from ``rng`` (same rng seed, same stream)."""
+    return np.array([rng.integers(0, 2**64 - 1, dtype=np.uint64, endpoint=True)], dtype=np.uint64)
+
+
+@njit(cache=True)
+def uniform(state):
+    """A float in [0, 1) from the splitmix64 generator with state (1,) uint64 (advanced in place)."""
+    state[0] += _GOLDEN
+    z = state[0]
+    z = (z ^ (z >> _S30)) * _MIX1
+    z = (z ^ (z >> _S27)) * _MIX2
+    z = z ^ (z >> _S31)
+    return (z >> _S11) * (1.0 / 9007199254740992.0)
+
+
+@njit(cache=True)
+def distance(a, b, idx, w):
+    """Workspace-weighted distance (m) of configurations a, b (dof,) over the variables idx (n,)
+    with weights w (n,)."""
+    d = 0.0
+    for k in range(idx.shape[0]):
+        d += w[k] * abs(a[idx[k]] - b[idx[k]])
+    return d
+
+
+@njit(cache=True)
+def nearest(nodes, count, x, idx, w, flags, skip):
+    """(index, distance) of the node among nodes[:count] (N, dof) nearest to x (dof,), leaving
+    out the nodes i with ``flags[i] & skip``; (-1, inf) if there is none."""
+    best, arg = np.inf, -1
+    for i in range(count):
+        if flags[i] & skip:
+            continue
+        d = 0.0
+        for k in range(idx.shape[0]):
+            d += w[k] * abs(nodes[i, idx[k]] - x[idx[k]])
+        if d < best:
+            best, arg = d, i
+    return arg, best
+
+
+@njit(cache=True)
+def _scales(qa, qb, granges, pairs, motion):
+    """Fill the clearance scales for the segment qa -> qb; returns the farthest any ball moves (m)."""
+    Wpath, qpath, (gscale, pscale, bscale, pcut), _, _ = motion
+    depth = Wpath.shape[1]
+    for s in range(Wpath.shape[0]):  # bscale[s, c]: motion bound of ball s from the joints below the c-th
+        acc = 0.0
+        bscale[s, depth] = _TINY
+        for i in range(depth - 1, -1, -1):
+            if qpath[s, i] >= 0:
+                acc += Wpath[s, i] * abs(qb[qpath[s, i]] - qa[qpath[s, i]])
+            bscale[s, i] = max(acc, _TINY)
+    longest = 0.0
+    for g in range(granges.shape[0]):
+        m = _TINY
+        for s in range(granges[g, 0], granges[g, 1]):
+            m = max(m, bscale[s, 0])
+        gscale[g] = m
+        longest = max(longest, m)
+    for p in range(pairs.shape[0]):
+        c = pcut[p]
+        for side in range(2):
+            m = _TINY
+            g = pairs[p, side]
+            for s in range(granges[g, 0], granges[g, 1]):
+                m = max(m, bscale[s, c])
+            pscale[p, side] = m
+    return longest
+
+
+FREE, BLOCKED, UNDECIDED = 1, 0, -1  # motion check results
+NO_LIMIT = 1 << 62  # a budget that decides every segment
+
+
+@njit(cache=True)
+def motion_free(qa, qb, res, checker, scratch, motion, counters, budget):
+    """Check the segment qa -> qb (dof,) for the sphere model (see the module doc).
+
+    Args:
+        qa, qb: configurations (dof,).
+        res: resolution (m) where the clearance does not cover the segment.
+        checker, scratch: the sphere checker's ``data`` and work arrays.
+        motion: ``PlanningContext.motion_arrays(res)``.
+        counters: counters[0] is incremented per clearance evaluation.
+        budget: most clearance evaluations to spend.
+
+    Returns:
+        FREE, BLOCKED, or UNDECIDED when the budget ran out first.
+    """
+    scales, queue, q = motion[2], motion[3], motion[4]
+    longest = _scales(qa, qb, checker[9], checker[19], motion)
+    counters[0] += 1
+    cover_b = SK.clearance(qb, checker, scratch, 1.0, scales)
+    if cover_b < 0.0:
+        return BLOCKED
+    if longest <= _TINY or cover_b >= 1.0:  # nothing moves, or qb's bubble holds the segment
+        return FREE
+    if budget < 2:
+        return UNDECIDED
+    half = 0.5 * res / longest
+    hi = 1.0 - max(cover_b, half)
+    counters[0] += 1
+    cover_a = SK.clearance(qa, checker, scratch, hi, scales)
+    if cover_a < 0.0:
+        return BLOCKED
+    lo = max(cover_a, half)
+    if lo >= hi:
+        return FREE
+    size = queue.shape[0]
+    head, tail, spent = 0, 1, 2
+    queue[0, 0], queue[0, 1] = lo, hi
+    while head < tail:
+        if spent >= budget:
+            return UNDECIDED
+        a, b = queue[head % size, 0], queue[head % size, 1]
+        head += 1
+        mid, h = 0.5 * (a + b), 0.5 * (b - a)
+        for k in range(q.shape[0]):
+            q[k] = qa[k] + mid * (qb[k] - qa[k])
+        counters[0] += 1
+        spent += 1
+        cover = SK.clearance(q, checker, scratch, h if h > half else 0.0, scales)
+        if cover < 0.0:
+            return BLOCKED
+        r = max(cover, half)
+        if r >= h:
+            continue
+        if tail - head + 2 > size:  # cannot happen with the queue of motion_arrays(res); stay sound
+            return BLOCKED
+        if mid - r > a:
+            queue[tail % size, 0], queue[tail % size, 1] = a, mid - r
+            tail += 1
+        if b > mid + r:
+            queue[tail % size, 0], queue[tail % size, 1] = mid + r, b
+            tail += 1
+    return FREE

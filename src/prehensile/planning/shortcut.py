@@ -1,0 +1,151 @@
+"""Path shortcutting (Vahrenkamp 2011 B.3, Alg. 34), compiled.
+
+Random shortcutting picks two positions a < b anywhere on the path (inside segments too, by
+arc length in the workspace-weighted metric) and replaces the stretch between them by the
+straight segment if that is free. Before and after, redundant waypoints go: first those on a
+straight line with their neighbours (no check needed, the segment is the same set of
+configurations), then every waypoint whose neighbours see each other. No step lengthens the
+path (the straight segment is never longer than any path between its ends, in any norm), and
+every new segment passes :func:`~prehensile.planning.kernels.motion_free`.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+from numba import njit
+
+from prehensile.errors import PrehensileError
+from prehensile.planning.context import PlanningContext
+from prehensile.planning.kernels import FREE, NO_LIMIT, distance, motion_free, rng_state, uniform
+
+
+@njit(cache=True)
+def _on_segment(a, b, c, idx, w):
+    """True if b lies on the segment a -> c (dof,) (up to rounding)."""
+    total = distance(a, c, idx, w)
+    if total <= 0.0:
+        return distance(a, b, idx, w) <= 0.0
+    t = distance(a, b, idx, w) / total
+    if t > 1.0 + 1e-9:
+        return False
+    for k in range(idx.shape[0]):
+        j = idx[k]
+        if abs(b[j] - (a[j] + t * (c[j] - a[j]))) > 1e-9 * (1.0 + abs(b[j])):
+            return False
+    return True
+
+
+@njit(cache=True)
+def prune(path, n, idx, w, res, checker, scratch, motion, counters):
+    """Drop redundant waypoints of path[:n] in place; returns the new count."""
+    m = 1  # collinear (and repeated) waypoints
+    for i in range(1, n - 1):
+        if not _on_segment(path[m - 1], path[i], path[i + 1], idx, w):
+            path[m] = path[i]
+            m += 1
+    path[m] = path[n - 1]
+    n = m + 1
+    k = 1  # waypoints whose neighbours see each other
+    while k < n - 1:
+        if motion_free(path[k - 1], path[k + 1], res, checker, scratch, motion, counters, NO_LIMIT) == FREE:
+            for j in range(k, n - 1):
+                path[j] = path[j + 1]
+            n -= 1
+        else:
+            k += 1
+    return n
+
+
+@njit(cache=True)
+def simplify(path, n, iterations, first, last, rng, idx, w, res, checker, scratch, motion, counters, cum, qa, qb):
+    """Prune path[:n] in place if ``first``, make ``iterations`` random shortcut attempts, prune
+    again if ``last``; returns the new count. Rows of ``path`` must be >= n + iterations;
+    ``cum`` (rows,), qa and qb (dof,) are work arrays, ``rng`` the (1,) uint64 state."""
+    if first:
+        n = prune(path, n, idx, w, res, checker, scratch, motion, counters)
+    for _ in range(iterations):
+        if n < 3:
+            break
+        cum[0] = 0.0
+        for i in range(n - 1):
+            cum[i + 1] = cum[i] + distance(path[i], path[i + 1], idx, w)
+        total = cum[n - 1]
+        s, e = uniform(rng) * total, uniform(rng) * total
+        if s > e:
+            s, e = e, s
+        i = min(max(np.searchsorted(cum[:n], s, side="right") - 1, 0), n - 2)
+        j = min(max(np.searchsorted(cum[:n], e, side="right") - 1, 0), n - 2)
+        if i == j:
+            continue
+        ta = (s - cum[i]) / max(cum[i + 1] - cum[i], 1e-300)
+        tb = (e - cum[j]) / max(cum[j + 1] - cum[j], 1e-300)
+        for k in range(path.shape[1]):
+            qa[k] = path[i, k] + ta * (path[i + 1, k] - path[i, k])
+            qb[k] = path[j, k] + tb * (path[j + 1, k] - path[j, k])
+        if (e - s) - distance(qa, qb, idx, w) <= 1e-9 * total:  # (nearly) straight already
+            continue
+        if motion_free(qa, qb, res, checker, scratch, motion, counters, NO_LIMIT) != FREE:
+            continue
+        # path[:i+1], qa, qb, path[j+1:n]: j - i waypoints out, two in
+        tail, old = i + 3, j + 1
+        if tail > old:
+            for k in range(n - 1, old - 1, -1):
+                path[k + tail - old] = path[k]
+        elif tail < old:
+            for k in range(old, n):
+                path[k + tail - old] = path[k]
+        path[i + 1] = qa
+        path[i + 2] = qb
+        n += tail - old
+    if last:
+        n = prune(path, n, idx, w, res, checker, scratch, motion, counters)
+    return n
+
+
+def shortcut(ctx: PlanningContext, path: np.ndarray, rng: np.random.Generator, iterations: int = 100,
+             time_budget_s: float = 0.05, resolution: float | None = None,
+             stats: np.ndarray | None = None) -> np.ndarray:
+    """A shorter path with the same ends: pruning, random shortcuts, pruning.
+
+    Args:
+        ctx: the planning context (sphere model, metric).
+        path: (N, dof) full configurations; the joints not planned must stay constant.
+        rng: random source (the same seed gives the same result).
+        iterations: random shortcut attempts.
+        time_budget_s: stop the random attempts after this time (s).
+        resolution: edge-check resolution (m); default ``ctx.resolution``.
+        stats: optional (1,) int64 counter of clearance evaluations (incremented).
+
+    Returns:
+        (M, dof) waypoints, M <= N + iterations, first and last equal to the input's.
+    """
+    path = ctx.model.check_configuration(path, "path")
+    if path.ndim != 2 or len(path) < 1:
+        raise PrehensileError(f"shortcut: path must have shape (N, {ctx.model.dof}), got {path.shape}")
+    fixed = np.setdiff1d(np.arange(ctx.model.dof), ctx.space.indices)
+    if len(fixed) and np.any(np.abs(path[:, fixed] - path[0, fixed]) > 1e-9):
+        raise PrehensileError("shortcut: the path moves joints that are not planned in this context")
+    if len(path) < 3:
+        return path.copy()
+    res = ctx.resolution if resolution is None else float(resolution)
+    iterations = int(iterations)
+    buffer = np.empty((len(path) + iterations, ctx.model.dof))
+    buffer[:len(path)] = path
+    work = (ctx.space.indices, ctx.space.weights, res, ctx.spheres.data, ctx.scratch, ctx.motion_arrays(res),
+            np.zeros(1, dtype=np.int64) if stats is None else stats, np.empty(len(buffer)),
+            np.empty(ctx.model.dof), np.empty(ctx.model.dof))
+    state, n, done = rng_state(rng), len(path), 0
+    start = time.perf_counter()
+    while True:  # chunks of random attempts (64, 64, 128, ...) until done or out of time
+        count = min(max(64, done), iterations - done)
+        last = done + count >= iterations
+        n = simplify(buffer, n, count, done == 0, last, state, *work)
+        done += count
+        if last:
+            break
+        if time.perf_counter() - start >= time_budget_s:
+            n = simplify(buffer, n, 0, False, True, state, *work)
+            break
+    return buffer[:n].copy()

@@ -1,0 +1,128 @@
+"""``prehensile bench mbm`` and the benchmarking package on a few MotionBenchMaker problems."""
+
+from __future__ import annotations
+
+import json
+import tarfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import MBM, require_shared
+from typer.testing import CliRunner
+
+from prehensile.benchmarking import ratio, time_summary
+from prehensile.benchmarking.mbm import MBMSettings, summarize
+from prehensile.cli.main import app
+from prehensile.errors import PrehensileError
+
+PROBLEMS = {"table_pick_panda": 1, "box_panda": 1}  # start and goal free on the padded spheres
+runner = CliRunner()
+
+
+@pytest.fixture(scope="module")
+def problem_dir(tmp_path_factory) -> Path:
+    """Two scene/request pairs extracted from the MBM archive, in their scenario folders."""
+    panda = require_shared(MBM / "panda")
+    out = tmp_path_factory.mktemp("mbm")
+    with tarfile.open(panda / "problems.tar.bz2") as archive:
+        for member in archive.getmembers():
+            path = Path(member.name)
+            if member.isfile() and PROBLEMS.get(path.parent.name) is not None and path.stem.endswith(
+                    f"{PROBLEMS[path.parent.name]:04d}"):
+                target = out / path.parent.name / path.name
+                target.parent.mkdir(exist_ok=True)
+                target.write_bytes(archive.extractfile(member).read())
+    assert len(list(out.rglob("*.yaml"))) == 2 * len(PROBLEMS)
+    return out
+
+
+def _bench(problem_dir: Path, tmp_path: Path, *extra: str) -> dict:
+    panda = MBM / "panda"
+    out = tmp_path / "report.json"
+    result = runner.invoke(app, ["bench", "mbm", str(problem_dir), "--robot", str(panda / "panda.urdf"),
+                                 "--srdf", str(panda / "panda.srdf"), "--spheres", str(panda / "panda_spherized.urdf"),
+                                 "--budget", "2", "--seed", "3", "--json", str(out), *extra])
+    assert result.exit_code == 0, result.output
+    assert "overall" in result.output and "table_pick_panda" in result.output
+    assert ("OMPL" in result.output) == ("--compare-ompl" in extra), result.output
+    return json.loads(out.read_text())
+
+
+def _check_summary(summary: dict, total: int) -> None:
+    assert summary["total"] == total
+    assert 0 <= summary["solved"] <= summary["total"]
+    assert sum(summary["statuses"].values()) == total
+    if summary["solved"]:
+        assert 0 < summary["median_ms"] <= summary["p95_ms"]
+        assert summary["path_length"] > 0
+        assert 0 <= summary["colliding_paths"] <= summary["solved"]
+
+
+def test_bench_mbm_ours(problem_dir, tmp_path):
+    report = _bench(problem_dir, tmp_path)
+    assert set(report) >= {"overall", "scenarios", "ompl", "ratios", "machine", "versions", "runs", "settings"}
+    assert report["ompl"] is None and report["ratios"] is None
+    assert set(report["scenarios"]) == set(PROBLEMS)
+    _check_summary(report["overall"], len(PROBLEMS))
+    for summary in report["scenarios"].values():
+        _check_summary(summary, 1)
+    overall = report["overall"]
+    assert overall["solved"] == len(PROBLEMS)  # easy problems, 2 s each
+    assert overall["colliding_paths"] == 0  # ours are certified on the exact meshes
+    assert overall["certify_median_ms"] > 0
+    assert report["robot"]["joints"] == [f"panda_joint{i}" for i in range(1, 8)]
+    assert report["versions"]["numpy"] == np.__version__
+    assert report["command"].startswith("prehensile bench mbm")
+
+
+def test_bench_mbm_with_ompl(problem_dir, tmp_path):
+    pytest.importorskip("ompl")
+    report = _bench(problem_dir, tmp_path, "--compare-ompl", "--limit", "1")
+    ompl = report["ompl"]
+    _check_summary(ompl["overall"], len(PROBLEMS))
+    assert set(ompl["scenarios"]) == set(PROBLEMS)
+    assert ompl["validity_call_us"] > 0 and 0 < ompl["segment_fraction"] < 1
+    ratios = report["ratios"]
+    assert ratios["paired_problems"] <= min(report["overall"]["solved"], ompl["overall"]["solved"])
+    if ratios["paired_problems"]:
+        assert ratios["median_speedup"] > 0 and ratios["paired_median_speedup"] > 0
+    for run in report["runs"]:
+        assert run["ompl"]["solved"] == (run["ompl"]["status"] == "success")
+
+
+def test_bad_problems_path_exits_2(tmp_path):
+    result = runner.invoke(app, ["bench", "mbm", str(tmp_path / "missing"), "--robot", "panda"])
+    assert result.exit_code == 2
+    assert "missing" in result.output and "MoveIt problems" in result.output
+
+
+def test_empty_problem_folder_exits_2(tmp_path):
+    result = runner.invoke(app, ["bench", "mbm", str(tmp_path), "--robot", "panda"])
+    assert result.exit_code == 2
+    assert "no MoveIt problems found" in result.output
+
+
+def test_settings_name_valid_choices():
+    with pytest.raises(PrehensileError, match="valid: rrt_connect"):
+        MBMSettings(planner="prm")
+    with pytest.raises(PrehensileError, match="budget"):
+        MBMSettings(time_budget_s=0)
+
+
+def test_summaries():
+    assert time_summary([]) == {"median_ms": None, "p95_ms": None, "mean_ms": None}
+    summary = time_summary([0.001, 0.002, 0.003])
+    assert summary["median_ms"] == pytest.approx(2.0) and summary["mean_ms"] == pytest.approx(2.0)
+    assert 2.0 < summary["p95_ms"] < 3.0
+    assert ratio(4.0, 2.0) == 2.0 and ratio(None, 1.0) is None and ratio(1.0, 0.0) is None
+    records = [
+        {"status": "success", "solved": True, "time_s": 0.001, "search_s": 0.0008, "simplify_s": 0.0002,
+         "certify_s": 0.01, "collision_checks": 100, "waypoints": 3, "path_length": 1.0, "exact_colliding": False},
+        {"status": "invalid_goal", "solved": False, "time_s": 0.0, "search_s": 0.0, "simplify_s": 0.0,
+         "certify_s": 0.0, "collision_checks": 2, "waypoints": 0, "path_length": None, "exact_colliding": None},
+    ]
+    summary = summarize(records)
+    assert (summary["solved"], summary["total"], summary["colliding_paths"]) == (1, 2, 0)
+    assert summary["median_ms"] == pytest.approx(1.0) and summary["path_length"] == 1.0
+    assert summary["statuses"] == {"success": 1, "invalid_goal": 1}

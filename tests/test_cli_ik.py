@@ -1,0 +1,95 @@
+"""`prehensile ik`: position-only and 6-D queries, exit codes, bad input."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from prehensile import robots
+from prehensile.cli.main import app
+from prehensile.kinematics import link_pose
+from prehensile.spatial import matrix_to_rpy
+from prehensile.spatial.transforms import rotation_error
+
+runner = CliRunner()
+
+
+def _run(*args):
+    return runner.invoke(app, [str(a) for a in args])
+
+
+def _reachable(robot: str, chain: str, seed: int = 3) -> tuple[np.ndarray, list[float]]:
+    """Tip pose (4, 4) of a random configuration of the chain, and its x y z roll pitch yaw."""
+    model = robots.load(robot)
+    q = model.neutral_configuration()
+    index = model.chain_q_indices(chain)
+    q[index] = np.random.default_rng(seed).uniform(model.lower[index], model.upper[index])
+    pose = link_pose(model, q, model.chain(chain).tip_link)
+    return pose, [*pose[:3, 3], *matrix_to_rpy(pose[:3, :3])]
+
+
+def _reached(robot: str, chain: str, joints: dict) -> np.ndarray:
+    model = robots.load(robot)
+    q = model.configuration_from_dict(joints)
+    return link_pose(model, q, model.chain(chain).tip_link)
+
+
+@pytest.mark.parametrize("robot, chain, method", [("panda", "arm", "dls"), ("nao", "left_arm", "dls"),
+                                                  ("nao", "left_arm_wrist", "analytic")])
+def test_pose_target_is_reached(robot, chain, method):
+    pose, values = _reachable(robot, chain)
+    result = _run("ik", robot, "--chain", chain, "--target", *values, "--method", method, "--json")
+    assert result.exit_code == 0, result.output
+    data = json.loads(result.stdout)
+    assert data["status"] == "success" and data["solutions"]
+    for joints in data["solutions"]:  # analytic: every solution reaches the target
+        reached = _reached(robot, chain, joints)
+        assert np.linalg.norm(reached[:3, 3] - pose[:3, 3]) <= 1e-4
+        assert np.linalg.norm(rotation_error(pose[:3, :3], reached[:3, :3])) <= 1e-3
+
+
+@pytest.mark.parametrize("robot, chain, method", [("panda", "arm", "dls"), ("nao", "left_arm", "dls"),
+                                                  ("nao", "left_arm", "fabrik")])
+def test_position_target_is_reached(robot, chain, method):
+    pose, values = _reachable(robot, chain, seed=5)
+    result = _run("ik", robot, "--chain", chain, "--target", *values[:3], "--method", method, "--json")
+    assert result.exit_code == 0, result.output
+    data = json.loads(result.stdout)
+    assert data["rotation_error_rad"] is None and data["target"]["rpy"] is None
+    assert np.linalg.norm(_reached(robot, chain, data["joints"])[:3, 3] - pose[:3, 3]) <= 1e-4
+
+
+def test_table_output_names_the_joints_and_status():
+    _, values = _reachable("panda", "arm")
+    result = _run("ik", "panda", "--chain", "arm", "--target", *values)
+    assert result.exit_code == 0, result.output
+    for text in ("panda_joint1", "panda_joint7", "status success", "iterations", "ms"):
+        assert text in result.stdout
+
+
+def test_unreachable_target_exits_1_with_status():
+    result = _run("ik", "panda", "--chain", "arm", "--target", 3, 0, 0, "--budget", 0.02)
+    assert result.exit_code == 1, result.output
+    assert "status timeout" in result.stdout
+
+
+def test_unknown_chain_exits_2_listing_chains():
+    result = _run("ik", "nao", "--chain", "tentacle", "--target", 0.1, 0.1, 0.1)
+    assert result.exit_code == 2
+    assert "tentacle" in result.stderr and "left_arm" in result.stderr and "right_arm_wrist" in result.stderr
+
+
+@pytest.mark.parametrize("extra, message", [
+    (["--target", 0.1, 0.2], "expected 3 values"),
+    (["--target", 0.1, 0.2, "nan"], "NaN"),
+    (["--target", 0.1, 0.2, "x"], "expected numbers"),
+    (["--target", 0.1, 0.2, 0.3, "--method", "magic"], "pinv, dls, fabrik, analytic"),
+    (["--target", 0.1, 0.2, 0.3, "--method", "analytic"], "solves poses"),
+])
+def test_bad_input_exits_2(extra, message):
+    result = _run("ik", "nao", "--chain", "left_arm", *extra)
+    assert result.exit_code == 2
+    assert message in result.stderr

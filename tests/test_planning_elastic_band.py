@@ -1,0 +1,126 @@
+"""Elastic band: pushes a Panda path away from a box, tightens, never breaks validity."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from prehensile.collision.world import Obstacle
+from prehensile.errors import PrehensileError
+from prehensile.model.geometry import Box
+from prehensile.planning.elastic_band import ElasticBandSettings, elastic_band, external_force
+from prehensile.spatial import make_pose
+
+# the hand sweeps over a box (joint 1 from -1 to 1); at the middle its fingers are ~1 cm above it
+Q_START = np.array([-1.0, 0.3, 0.0, -1.8, 0.0, 2.1, 0.8, 0.02])
+Q_GOAL = np.array([1.0, 0.3, 0.0, -1.8, 0.0, 2.1, 0.8, 0.02])
+BOX = Obstacle("box", Box((0.1, 0.1, 0.1)), make_pose(position=[0.633, 0.0, 0.207]))
+
+
+@pytest.fixture(scope="module")
+def panda():
+    import prehensile.robots as robots
+
+    try:
+        return robots.load("panda")
+    except PrehensileError as error:
+        pytest.skip(str(error))
+
+
+def _context(model, obstacles):
+    from prehensile.planning.context import PlanningContext
+
+    return PlanningContext(model, obstacles, joints="arm", q_ref=Q_START)
+
+
+def _world_clearance(ctx, path: np.ndarray) -> np.ndarray:
+    """(N,) exact robot-vs-world distance (m) at each waypoint."""
+    return np.array([min(p.distance for p in ctx.exact.closest_points(q)) for q in path])
+
+
+def _valid(ctx, path: np.ndarray) -> bool:
+    return all(ctx.is_valid(q) for q in path) and all(ctx.check_motion(a, b) for a, b in zip(path[:-1], path[1:]))
+
+
+def test_closest_points_are_consistent(panda):
+    ctx = _context(panda, [BOX])
+    middle = 0.5 * (Q_START + Q_GOAL)
+    pairs = ctx.exact.closest_points(middle)
+    assert len(pairs) == sum(1 for g in ctx.exact.model.collisions if g)  # one per link with geometry
+    for pair in pairs:
+        assert pair.other == "box" and pair.point_on_robot.shape == pair.point_on_other.shape == (3,)
+        assert np.linalg.norm(pair.point_on_robot - pair.point_on_other) == pytest.approx(pair.distance, abs=1e-6)
+        assert np.all(np.abs(pair.point_on_other - [0.633, 0.0, 0.207]) <= 0.05 + 1e-6)  # on the box
+    near = ctx.exact.closest_points(middle, max_distance=0.05)
+    assert [(p.link, p.distance) for p in near] == [(p.link, p.distance) for p in pairs if p.distance <= 0.05]
+    assert 0 < len(near) < len(pairs)
+
+
+def test_band_moves_a_path_away_from_a_box(panda):
+    ctx = _context(panda, [BOX])
+    path = np.stack([Q_START, Q_GOAL])
+    assert _valid(ctx, path)
+    band = elastic_band(ctx, path, ElasticBandSettings(d_min=0.05))
+    assert len(band) > 10
+    assert np.array_equal(band[0], Q_START) and np.array_equal(band[-1], Q_GOAL)
+    assert _valid(ctx, band)
+    assert np.all(band[:, 7] == Q_START[7])  # the finger is not planned: untouched
+    before = ctx.exact.min_distance(np.linspace(Q_START, Q_GOAL, len(band)))
+    after = ctx.exact.min_distance(band)
+    assert before.min() < 0.015 and after.min() > 0.04
+    assert np.array_equal(band, elastic_band(ctx, path, ElasticBandSettings(d_min=0.05)))  # deterministic
+
+
+def test_external_force_points_away_from_the_obstacle(panda):
+    ctx = _context(panda, [BOX])
+    middle = 0.5 * (Q_START + Q_GOAL)
+    force = external_force(ctx, middle, d_min=0.05)
+    assert np.linalg.norm(force) > 0
+    q = middle.copy()
+    q[ctx.space.indices] += 0.05 * force / np.linalg.norm(force)
+    assert _world_clearance(ctx, q[None])[0] > _world_clearance(ctx, middle[None])[0] + 0.005
+    # one waypoint, pushed only by the obstacle: its clearance grows, the ends stay
+    path = np.stack([Q_START, middle, Q_GOAL])
+    band = elastic_band(ctx, path, ElasticBandSettings(k_int=0.0, max_iterations=3, max_spacing=None))
+    assert len(band) == 3 and np.array_equal(band[[0, 2]], path[[0, 2]])
+    assert _world_clearance(ctx, band[1:2])[0] > _world_clearance(ctx, path[1:2])[0] + 0.01
+
+
+def test_band_tightens_a_detour_far_from_obstacles(panda):
+    far = Obstacle("far", Box((0.1, 0.1, 0.1)), make_pose(position=[-1.0, -1.0, 0.05]))
+    ctx = _context(panda, [far])
+    detour = Q_START.copy()
+    detour[[1, 3]] += [-0.3, 0.3]
+    path = np.stack([Q_START, 0.5 * (Q_START + Q_GOAL) + (detour - Q_START), Q_GOAL])
+    assert _valid(ctx, path)
+    band = elastic_band(ctx, path, ElasticBandSettings(k_int=0.05, max_iterations=20, max_spacing=0.1))
+    length = ctx.space.path_length
+    assert length(ctx.space.active(band)) < 0.9 * length(ctx.space.active(path))
+    assert np.array_equal(band[[0, -1]], path[[0, -1]]) and _valid(ctx, band)
+
+
+class _Rejecting:
+    """A context whose motion check refuses everything."""
+
+    def __init__(self, ctx):
+        self.model, self.space, self.exact, self.is_valid = ctx.model, ctx.space, ctx.exact, ctx.is_valid
+
+    def check_motion(self, qa, qb) -> bool:
+        return False
+
+
+def test_rejected_updates_leave_the_path_unchanged(panda):
+    ctx = _Rejecting(_context(panda, [BOX]))
+    path = np.stack([Q_START, Q_GOAL])
+    band = elastic_band(ctx, path, ElasticBandSettings(max_spacing=0.2))
+    t = np.linspace(0.0, 1.0, len(band))[:, None]
+    assert np.allclose(band, (1 - t) * Q_START + t * Q_GOAL)
+
+
+def test_bad_settings_and_path():
+    with pytest.raises(PrehensileError, match="d_min"):
+        ElasticBandSettings(d_min=0.0)
+    with pytest.raises(PrehensileError, match="k_int"):
+        ElasticBandSettings(k_int=-1.0)
+    with pytest.raises(PrehensileError, match="path"):
+        elastic_band(None, np.zeros((0, 8)))

@@ -1,0 +1,137 @@
+"""J+-RRT, IK-RRT (one arm, bimanual, hand-over) and Multi-EEF-RRT: paths start where asked,
+reach a grasp, respect the limits and pass the exact check; statuses; determinism."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from prehensile import robots
+from prehensile.collision import Obstacle
+from prehensile.ik import ChainSolver, ObjectRegion
+from prehensile.model.geometry import Box
+from prehensile.planning import PlanningContext, PlanStatus, certify_path
+from prehensile.planning.ik_rrt import (IKRRTSettings, dual_arm_sampler, grasp_sampler, ik_rrt, multi_eef_rrt,
+                                        regrasp_sampler)
+from prehensile.planning.jplus_rrt import JPlusRRTSettings, jplus_rrt
+from prehensile.spatial import invert, make_pose, rotation_error
+
+
+@pytest.fixture(scope="module")
+def panda_scene():
+    model = robots.load("panda")
+    wall = Obstacle("wall", Box((0.3, 0.02, 0.4)), make_pose(position=[0.45, 0.0, 0.3]))
+    ctx = PlanningContext(model, [wall], joints="arm")
+    solver = ChainSolver(model, "arm")
+    q0 = model.neutral_configuration()
+    q0[[1, 3, 5]] = [-0.5, -2.0, 1.5]
+    rng, goals = np.random.default_rng(0), []
+    while len(goals) < 3:  # grasp poses on the other side of the wall
+        q = q0.copy()
+        q[ctx.space.indices] = rng.uniform(ctx.space.lower, ctx.space.upper)
+        T = solver.tool_pose(q)
+        if ctx.is_valid(q) and T[1, 3] > 0.1:
+            goals.append(T)
+    return ctx, solver, q0, np.array(goals)
+
+
+def assert_valid_path(ctx, path, q_start):
+    assert np.array_equal(path[0], q_start)
+    assert np.all(ctx.model.within_limits(path))
+    assert certify_path(ctx, path).ok
+
+
+def test_jplus_rrt_reaches_a_grasp(panda_scene):
+    ctx, solver, q0, goals = panda_scene
+    settings = JPlusRRTSettings(time_budget_s=5.0)
+    result = jplus_rrt(ctx, q0, goals, settings=settings, rng=1)
+    assert result.success and 0 <= result.goal_index < len(goals)
+    assert_valid_path(ctx, result.path, q0)
+    tool = solver.tool_pose(result.path[-1])
+    target = goals[result.goal_index]
+    assert np.linalg.norm(tool[:3, 3] - target[:3, 3]) <= settings.position_tolerance
+    assert np.linalg.norm(rotation_error(target[:3, :3], tool[:3, :3])) <= settings.rotation_tolerance
+    again = jplus_rrt(ctx, q0, goals, settings=settings, rng=1)
+    assert np.array_equal(again.path, result.path)
+
+
+def test_ik_rrt_reaches_a_grasp(panda_scene):
+    ctx, solver, q0, goals = panda_scene
+    result = ik_rrt(ctx, q0, grasp_sampler(ctx, solver, goals, q0), rng=2)
+    assert result.success and result.stats.ik_solutions >= 1
+    assert_valid_path(ctx, result.path, q0)
+    grasp = result.info["goal"]["grasp"]
+    assert np.linalg.norm(solver.tool_pose(result.path[-1])[:3, 3] - goals[grasp, :3, 3]) <= 1e-4
+    again = ik_rrt(ctx, q0, grasp_sampler(ctx, solver, goals, q0), rng=2)
+    assert np.array_equal(again.path, result.path)
+
+
+def test_unreachable_goals_are_statuses_within_budget(panda_scene):
+    ctx, solver, q0, goals = panda_scene
+    far = np.eye(4)
+    far[:3, 3] = [0.0, 0.0, 3.0]
+    result = ik_rrt(ctx, q0, grasp_sampler(ctx, solver, far[None], q0), IKRRTSettings(time_budget_s=0.2), rng=0)
+    assert result.status is PlanStatus.NO_GOAL_CONFIGURATION and result.stats.plan_time_s < 0.4
+    result = jplus_rrt(ctx, q0, far[None], settings=JPlusRRTSettings(time_budget_s=0.2), rng=0)
+    assert result.status is PlanStatus.TIMEOUT and result.stats.plan_time_s < 0.4
+    colliding = q0.copy()
+    colliding[ctx.space.indices] = solver.lower  # folded into the floor / itself
+    if not ctx.is_valid(colliding):
+        assert jplus_rrt(ctx, colliding, goals, rng=0).status is PlanStatus.INVALID_START
+
+
+@pytest.fixture(scope="module")
+def armar():
+    model = robots.load("armar3")
+    return model, ChainSolver(model, "LeftArm"), ChainSolver(model, "RightArm")
+
+
+def two_hand_pose(model, left, right, seed):
+    """A configuration with both hands placed, free on the exact model, and its hand poses."""
+    ctx = PlanningContext(model, [], joints="TorsoBothArms")
+    rng = np.random.default_rng(seed)
+    while True:
+        q = model.neutral_configuration()
+        q[ctx.space.indices] = rng.uniform(ctx.space.lower, ctx.space.upper)
+        if ctx.is_valid(q):
+            return ctx, left.tool_pose(q), right.tool_pose(q)
+
+
+def test_bimanual_and_hand_over_ik_rrt(armar):
+    model, left, right = armar
+    ctx, T_left, T_right = two_hand_pose(model, left, right, seed=4)
+    q0 = model.neutral_configuration()
+    sampler = dual_arm_sampler(ctx, [left, right], [T_left[None], T_right[None]], q0, free="Torso")
+    result = ik_rrt(ctx, q0, sampler, IKRRTSettings(time_budget_s=10.0), rng=0)
+    assert result.success and result.info["goal"]["grasps"] == (0, 0)
+    assert_valid_path(ctx, result.path, q0)
+    assert np.linalg.norm(left.tool_pose(result.path[-1])[:3, 3] - T_left[:3, 3]) <= 1e-4
+    # hand-over: the object sits at the left TCP; the right hand holds it by a fixed grasp
+    grasps = [np.eye(4)[None], (invert(T_left) @ T_right)[None]]
+    region = ObjectRegion(tuple(T_left[:3, 3] - 0.05), tuple(T_left[:3, 3] + 0.05))
+    result = ik_rrt(ctx, q0, regrasp_sampler(ctx, [left, right], grasps, region, q0, free="Torso"),
+                    IKRRTSettings(time_budget_s=20.0), rng=0)
+    assert result.success
+    assert_valid_path(ctx, result.path, q0)
+    T_object = result.info["goal"]["T_world_object"]
+    np.testing.assert_allclose(right.tool_pose(result.path[-1])[:3, 3], (T_object @ grasps[1][0])[:3, 3], atol=1e-4)
+
+
+def test_multi_eef_rrt_picks_the_free_hand(armar):
+    model, _, _ = armar
+    left, right = ChainSolver(model, "TorsoLeftArm"), ChainSolver(model, "TorsoRightArm")
+    q0 = model.neutral_configuration()
+    target = right.tool_pose(q0)
+    target[:3, 3] += [-0.05, 0.15, -0.05]
+    # a wall on the right side of the robot blocks the right hand
+    wall = Obstacle("wall", Box((0.05, 1.5, 2.0)), make_pose(position=[0.22, 0.2, 1.0]))
+    contexts = {"Hand_L": PlanningContext(model, [wall], joints="TorsoLeftArm"),
+                "Hand_R": PlanningContext(model, [wall], joints="TorsoRightArm")}
+    mirrored = target.copy()
+    mirrored[0, 3] *= -1.0
+    mirrored[:3, :3] = left.tool_pose(q0)[:3, :3]
+    samplers = {"Hand_R": grasp_sampler(contexts["Hand_R"], right, target[None], q0),
+                "Hand_L": grasp_sampler(contexts["Hand_L"], left, mirrored[None], q0)}
+    result = multi_eef_rrt(contexts, q0, samplers, IKRRTSettings(time_budget_s=10.0), rng=0)
+    assert result.success and result.end_effector == "Hand_L"
+    assert_valid_path(contexts["Hand_L"], result.path, q0)

@@ -1,0 +1,134 @@
+"""Time parameterization: limits, rest at the ends, path following, blending, bad input."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from prehensile.errors import PrehensileError
+from prehensile.planning.trajectory import (DEFAULT_ACCELERATION, DEFAULT_VELOCITY, Trajectory, model_limits,
+                                            time_parameterize)
+
+TOL = 1e-6  # relative slack on the limits
+
+
+def _panda_problem():
+    import prehensile.robots as robots
+
+    model = robots.load("panda")
+    indices = model.chain_q_indices("arm")
+    velocity, acceleration = model_limits(model, indices)
+    rng = np.random.default_rng(7)
+    lower, upper = model.lower[indices], model.upper[indices]
+    path = lower + (upper - lower) * rng.uniform(0.2, 0.8, (6, len(indices)))
+    return model, indices, path, velocity, acceleration
+
+
+def _distance_to_polyline(points: np.ndarray, path: np.ndarray) -> np.ndarray:
+    """(M,) Euclidean distance of each point to the polyline through path (N, n)."""
+    a, d = path[:-1], np.diff(path, axis=0)
+    r = np.einsum("mkn,kn->mk", points[:, None] - a, d) / np.einsum("kn,kn->k", d, d)
+    foot = a + np.clip(r, 0.0, 1.0)[..., None] * d
+    return np.min(np.linalg.norm(points[:, None] - foot, axis=-1), axis=1)
+
+
+def test_panda_path_respects_limits_rests_at_ends_and_follows_the_polyline():
+    model, indices, path, velocity, acceleration = _panda_problem()
+    traj = time_parameterize(path, velocity, acceleration, dt=0.01)
+    assert traj.duration > 0 and traj.t[0] == 0.0 and np.all(np.diff(traj.t) > 0)
+    assert np.allclose(np.diff(traj.t)[:-1], 0.01) and np.diff(traj.t)[-1] <= 0.01 + 1e-12
+    assert np.all(np.abs(traj.qd) <= velocity * (1 + TOL))
+    assert np.all(np.abs(traj.qdd) <= acceleration * (1 + TOL))
+    assert np.array_equal(traj.q[0], path[0]) and np.array_equal(traj.q[-1], path[-1])
+    assert np.all(traj.qd[0] == 0) and np.all(traj.qd[-1] == 0)
+    assert np.max(_distance_to_polyline(traj.q, path)) < 1e-9
+    # every waypoint is visited, at rest
+    for waypoint in path[1:-1]:
+        k = np.argmin(np.linalg.norm(traj.q - waypoint, axis=1))
+        assert np.linalg.norm(traj.q[k] - waypoint) < 1e-3 and np.linalg.norm(traj.qd[k]) < 0.05
+    # sampling between the stored samples stays on the path too
+    q, qd, qdd = traj.sample(np.linspace(0.0, traj.duration, 2345))
+    assert q.shape == (2345, 7) and qd.shape == qdd.shape == q.shape
+    assert np.max(_distance_to_polyline(q, path)) < 1e-5
+    assert np.all(np.abs(qd) <= velocity * (1 + 1e-3))
+    assert np.allclose(traj.sample(traj.t[5])[0], traj.q[5])
+
+
+def test_same_input_same_output_and_json():
+    _, _, path, velocity, acceleration = _panda_problem()
+    names = tuple(f"j{i}" for i in range(7))
+    a = time_parameterize(path, velocity, acceleration, joint_names=names)
+    b = time_parameterize(path, velocity, acceleration, joint_names=names)
+    assert np.array_equal(a.t, b.t) and np.array_equal(a.q, b.q) and np.array_equal(a.qdd, b.qdd)
+    data = json.loads(json.dumps(a.to_dict()))
+    assert data["joint_names"] == list(names) and data["duration"] == pytest.approx(a.duration)
+    assert np.array_equal(np.array(data["q"]), a.q)
+    assert time_parameterize(path, velocity, acceleration).to_dict()["joint_names"] == []
+
+
+def test_single_segment_matches_the_analytic_trapezoid():
+    a, b = np.array([0.0, 0.0]), np.array([2.0, -0.5])
+    velocity, acceleration = np.array([1.0, 1.0]), np.array([2.0, 2.0])
+    traj = time_parameterize(np.stack([a, b]), velocity, acceleration)
+    # joint 0 binds: accelerate at 2 rad/s^2 to 1 rad/s (0.25 rad), cruise 1.5 rad, decelerate
+    assert traj.duration == pytest.approx(0.5 + 1.5 + 0.5, rel=1e-4)
+    assert np.max(np.abs(traj.qd[:, 0])) == pytest.approx(1.0, rel=1e-6)
+
+
+def test_repeats_and_collinear_waypoints_do_not_stop_the_motion():
+    a, b = np.array([0.0, 0.0, 0.0]), np.array([1.0, 0.5, -0.2])
+    dense = np.concatenate([[a, a], np.linspace(a, b, 17), [b]])
+    single = time_parameterize(np.stack([a, b]), 1.0, 2.0)
+    traj = time_parameterize(dense, 1.0, 2.0)
+    assert traj.duration == pytest.approx(single.duration, rel=1e-12)
+    assert np.array_equal(traj.q, single.q)
+
+
+def test_single_configuration_and_bad_input():
+    traj = time_parameterize(np.array([[0.1, 0.2], [0.1, 0.2]]), 1.0, 1.0)
+    assert traj.duration == 0.0 and traj.q.shape == (1, 2) and np.all(traj.qd == 0)
+    assert np.allclose(traj.sample(np.array([0.0, 3.0]))[0], [[0.1, 0.2], [0.1, 0.2]])
+    path = np.array([[0.0, 0.0], [1.0, 1.0]])
+    with pytest.raises(PrehensileError, match="path"):
+        time_parameterize(np.array([[0.0, np.nan], [1.0, 1.0]]), 1.0, 1.0)
+    with pytest.raises(PrehensileError, match="path"):
+        time_parameterize(np.zeros((0, 2)), 1.0, 1.0)
+    with pytest.raises(PrehensileError, match="velocity_limits"):
+        time_parameterize(path, np.array([1.0, 0.0]), 1.0)
+    with pytest.raises(PrehensileError, match="acceleration_limits"):
+        time_parameterize(path, 1.0, np.ones(3))
+    with pytest.raises(PrehensileError, match="dt"):
+        time_parameterize(path, 1.0, 1.0, dt=0.0)
+    with pytest.raises(PrehensileError, match="joint names"):
+        Trajectory(np.zeros(1), np.zeros((1, 2)), np.zeros((1, 2)), np.zeros((1, 2)), ("a",))
+
+
+def test_blending_only_when_checked():
+    _, _, path, velocity, acceleration = _panda_problem()
+    # a dense, gently curved path: stopping at every waypoint is slow, blending is not
+    s = np.linspace(0.0, 1.0, 25)[:, None]
+    curved = path[0] + s * (path[1] - path[0]) + 0.3 * np.sin(np.pi * s) * np.ones(7)
+    stops = time_parameterize(curved, velocity, acceleration)
+    chords = []
+    blended = time_parameterize(curved, velocity, acceleration, blend_check=lambda a, b: chords.append((a, b)) or True)
+    assert len(chords) > len(curved) and blended.duration < 0.5 * stops.duration
+    assert np.all(np.abs(blended.qd) <= velocity * (1 + TOL))
+    assert np.all(np.abs(blended.qdd) <= acceleration * (1 + TOL))
+    assert np.all(blended.qd[0] == 0) and np.all(blended.qd[-1] == 0)
+    assert np.array_equal(blended.q[-1], curved[-1])
+    assert np.max(_distance_to_polyline(blended.q, curved)) < 0.01  # close to, not on, the polyline
+    rejected = time_parameterize(curved, velocity, acceleration, blend_check=lambda a, b: False)
+    assert np.array_equal(rejected.q, stops.q)
+
+
+def test_model_limits():
+    model, indices, _, velocity, acceleration = _panda_problem()
+    assert np.array_equal(velocity, model.velocity_limit[indices])
+    assert np.all(acceleration == DEFAULT_ACCELERATION) and acceleration.shape == (7,)
+    from dataclasses import replace
+
+    unlimited = replace(model, velocity_limit=np.full(model.dof, np.inf))
+    assert np.all(model_limits(unlimited, acceleration=5.0)[0] == DEFAULT_VELOCITY)
+    assert np.all(model_limits(unlimited, acceleration=5.0)[1] == 5.0)
