@@ -8,6 +8,7 @@ import pytest
 
 from prehensile import robots
 from prehensile.collision import Obstacle
+from prehensile.collision.spheres import generate_sphere_model
 from prehensile.ik import ChainSolver, ObjectRegion
 from prehensile.model.geometry import Box
 from prehensile.planning import PlanningContext, PlanStatus, certify_path
@@ -83,23 +84,25 @@ def test_unreachable_goals_are_statuses_within_budget(panda_scene):
 @pytest.fixture(scope="module")
 def armar():
     model = robots.load("armar3")
-    return model, ChainSolver(model, "LeftArm"), ChainSolver(model, "RightArm")
+    # the torso box needs small balls: the default cover overlaps the upper arms at rest
+    return model, ChainSolver(model, "LeftArm"), ChainSolver(model, "RightArm"), generate_sphere_model(model, max_radius=0.04)
 
 
-def two_hand_pose(model, left, right, seed):
-    """A configuration with both hands placed, free on the exact model, and its hand poses."""
-    ctx = PlanningContext(model, [], joints="TorsoBothArms")
+def two_hand_pose(model, left, right, spheres, seed):
+    """A planning context for hip and both arms, and the hand poses of a valid configuration."""
+    ctx = PlanningContext(model, [], joints="TorsoBothArms", spheres=spheres)
     rng = np.random.default_rng(seed)
-    while True:
+    for _ in range(1000):
         q = model.neutral_configuration()
         q[ctx.space.indices] = rng.uniform(ctx.space.lower, ctx.space.upper)
         if ctx.is_valid(q):
             return ctx, left.tool_pose(q), right.tool_pose(q)
+    raise AssertionError("no valid two-arm configuration in 1000 samples")
 
 
 def test_bimanual_and_hand_over_ik_rrt(armar):
-    model, left, right = armar
-    ctx, T_left, T_right = two_hand_pose(model, left, right, seed=4)
+    model, left, right, spheres = armar
+    ctx, T_left, T_right = two_hand_pose(model, left, right, spheres, seed=4)
     q0 = model.neutral_configuration()
     sampler = dual_arm_sampler(ctx, [left, right], [T_left[None], T_right[None]], q0, free="Torso")
     result = ik_rrt(ctx, q0, sampler, IKRRTSettings(time_budget_s=10.0), rng=0)
@@ -118,15 +121,15 @@ def test_bimanual_and_hand_over_ik_rrt(armar):
 
 
 def test_multi_eef_rrt_picks_the_free_hand(armar):
-    model, _, _ = armar
+    model, _, _, spheres = armar
     left, right = ChainSolver(model, "TorsoLeftArm"), ChainSolver(model, "TorsoRightArm")
     q0 = model.neutral_configuration()
     target = right.tool_pose(q0)
     target[:3, 3] += [-0.05, 0.15, -0.05]
-    # a wall on the right side of the robot blocks the right hand
-    wall = Obstacle("wall", Box((0.05, 1.5, 2.0)), make_pose(position=[0.22, 0.2, 1.0]))
-    contexts = {"Hand_L": PlanningContext(model, [wall], joints="TorsoLeftArm"),
-                "Hand_R": PlanningContext(model, [wall], joints="TorsoRightArm")}
+    # a box around the right hand's grasp pose: only the left hand can take its (mirrored) grasp
+    box = Obstacle("box", Box((0.15, 0.15, 0.15)), make_pose(position=target[:3, 3]))
+    contexts = {"Hand_L": PlanningContext(model, [box], joints="TorsoLeftArm", spheres=spheres),
+                "Hand_R": PlanningContext(model, [box], joints="TorsoRightArm", spheres=spheres)}
     mirrored = target.copy()
     mirrored[0, 3] *= -1.0
     mirrored[:3, :3] = left.tool_pose(q0)[:3, :3]

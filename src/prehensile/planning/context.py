@@ -189,7 +189,9 @@ class PlanningContext:
         joints: the planned joints: a chain name, joint names, or None for all variables.
         q_ref: (dof,) values of the joints not planned (rad or m); neutral if None.
         T_world_base: (4, 4) pose of the robot root; identity if None.
-        spheres: the robot's sphere model (planning); default generated from its geometry.
+        spheres: the robot's sphere model (planning); default generated from its geometry. Robots
+            with large primitive links (ARMAR-III's torso) want ``generate_sphere_model(model,
+            max_radius=0.04)``: the default cover of a big box is coarse.
         acm: (L, L) allowed-collision matrix of ``model``; default from the model (SRDF).
         attached: grasped objects moving with their links.
         resolution: edge-check resolution (m): where the sphere clearance does not prove a
