@@ -79,11 +79,14 @@ class MBMSettings:
                 raise PrehensileError(f"{name}: must be positive (m), got {getattr(self, name)}")
 
 
-def benchmark_spheres(model: RobotModel, spherized_urdf: str | Path | None) -> SphereModel:
-    """The robot's sphere model: a spherized URDF's balls padded to cover the meshes, or generated."""
+def benchmark_spheres(model: RobotModel, spherized_urdf: str | Path | None, pad: bool = True) -> SphereModel:
+    """The robot's sphere model: generated from the meshes without ``spherized_urdf``, else its
+    balls, padded to cover the meshes if ``pad`` (unpadded balls can miss mesh contacts; the
+    exact certification then rejects such paths)."""
     if spherized_urdf is None:
         return generate_sphere_model(model)
-    return pad_sphere_model(spheres_from_urdf(model, spherized_urdf), model)
+    balls = spheres_from_urdf(model, spherized_urdf)
+    return pad_sphere_model(balls, model) if pad else balls
 
 
 def planned_joints(model: RobotModel, problem: MBMProblem) -> list[str]:

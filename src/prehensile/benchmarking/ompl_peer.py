@@ -20,8 +20,10 @@ What OMPL gets, so that the comparison measures the planners and not the problem
 - **Simplification**: ``SimpleSetup.simplifySolution()`` with its default (no duration:
   ``PathSimplifier::simplifyMax`` -- vertex reduction, shortcutting, B-spline smoothing,
   repeated while it improves), which is what a user of OMPL gets by default.
-- **Start and goal** are checked first; if either is invalid the peer returns at once, as our
-  planner does (OMPL's RRT-Connect would spend the whole budget sampling for a valid goal).
+- **Start and goal** are checked first; if the spheres reject either, the peer returns
+  INVALID_START / INVALID_GOAL at once (OMPL's RRT-Connect would spend the whole budget
+  sampling for a valid goal). OMPL has no counterpart of our planner's exactly certified escape
+  from endpoints that only the conservative balls reject, so such problems count as unsolved.
 - **Seed**: OMPL seeds every planner's generator from one process-wide seed that can only be
   set before the first OMPL generator exists (``ompl.util.RNG.setSeed``); the first call here
   sets it to ``seed + 1`` (OMPL rejects 0). Runs in the same order with the same seed sample

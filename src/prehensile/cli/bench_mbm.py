@@ -21,6 +21,8 @@ def bench_mbm(
     robot: str = typer.Option(..., "--robot", help="Robot URDF (or a bundled robot name)."),
     spheres: Optional[Path] = typer.Option(None, "--spheres", help="Spherized URDF; its balls are padded to cover "
                                            "the meshes (default: spheres generated from the meshes)."),
+    pad: bool = typer.Option(True, "--pad/--no-pad", help="Pad the spherized URDF's balls to cover the meshes; "
+                             "--no-pad plans with them as they are (not covering; exact certification decides)."),
     srdf: Optional[Path] = typer.Option(None, "--srdf", help="SRDF with the planning groups and disabled collision "
                                         "pairs (default: <urdf stem>.srdf next to the URDF if present)."),
     planner: str = typer.Option("rrt_connect", "--planner", help="Our planner."),
@@ -42,7 +44,7 @@ def bench_mbm(
     if spheres is not None and not spheres.is_file():
         raise PrehensileError(f"--spheres {spheres}: file not found")
     model = robots.load(robot, srdf)
-    sphere_model = benchmark_spheres(model, spheres)
+    sphere_model = benchmark_spheres(model, spheres, pad)
     with Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
                   console=err_console, transient=True) as bar:
         task = bar.add_task("planning", total=None)
@@ -53,10 +55,11 @@ def bench_mbm(
         report = run_mbm(problems, model, sphere_model, settings, progress)
     options = {"--robot": robot, "--srdf": srdf, "--spheres": spheres, "--planner": planner, "--budget": budget,
                "--seed": seed, "--limit": limit, "--json": json_out}
-    words = ["prehensile", "bench", "mbm", str(problems)] + ["--compare-ompl"] * compare_ompl
+    words = ["prehensile", "bench", "mbm", str(problems)] + ["--compare-ompl"] * compare_ompl + ["--no-pad"] * (not pad)
     report["command"] = shlex.join(words + [str(w) for k, v in options.items() if v is not None for w in (k, v)])
     report["robot"].update(urdf=str(robot), srdf=None if srdf is None else str(srdf),
-                           spherized_urdf=None if spheres is None else str(spheres))
+                           spherized_urdf=None if spheres is None else str(spheres),
+                           sphere_model="generated" if spheres is None else "padded" if pad else "unpadded")
     print_report(report)
     if json_out is not None:
         atomic_write_json(json_out, report)

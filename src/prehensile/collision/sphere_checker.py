@@ -2,7 +2,8 @@
 
 Forward kinematics and every test run in one compiled kernel
 (:mod:`prehensile.collision.sphere_kernels`) that stops at the first collision of each
-configuration. Boxes, spheres, cylinders and capsules are tested exactly (ball against solid).
+configuration; the same kernel gives (scaled) clearances for the planners' motion checks.
+Grasped objects join as extra links (:func:`prehensile.planning.context.attach_objects`). Boxes, spheres, cylinders and capsules are tested exactly (ball against solid).
 Mesh obstacles are replaced by balls covering their triangles
 (:func:`~prehensile.collision.sphere_fit.cover_geometries`), which is conservative for surface
 contact, the same notion of contact as coal's mesh checks; a robot wholly inside a closed
@@ -82,12 +83,17 @@ def _tree_distance(model: RobotModel, a: int, b: int) -> int:
     return len(up_a) + len(up_b) - 2 * common
 
 
+CHUNK = 8  # balls per chunk: the middle level of the bounding-ball hierarchy
+
+
 def _frames_and_groups(model: RobotModel, spheres: SphereModel) -> tuple[dict, dict]:
     """Kinematic frames (moving rigid bodies) and ball groups (links with balls) for the kernels.
 
     Links joined by fixed joints form one rigid body; its top link is the frame. Balls are
     moved into their body's frame, so FK computes one pose per moving body only. Frame 0 is
-    the root body (its pose never changes).
+    the root body (its pose never changes). Each group's balls are sorted along its main axis
+    and cut into chunks of ``CHUNK`` with a bounding ball each; ``order`` maps the kernels'
+    balls to the sphere model's.
     """
     body = rigid_bodies(model)
     roots = [i for i in range(model.n_links) if body[i] == i]
@@ -112,23 +118,40 @@ def _frames_and_groups(model: RobotModel, spheres: SphereModel) -> tuple[dict, d
     bcenter, bradius = spheres.link_bounds()
     links = [i for i in range(model.n_links) if ranges[i, 1] > ranges[i, 0]]
     links.sort(key=lambda i: (frame_of[int(body[i])], i))  # the kernels need groups sorted by frame
-    centers, radii, g_bc = [], [], []
+    order, g_bc, chunks = [], [], []
     for i in links:
         a, b = ranges[i]
         T = T_body_link[i]
-        centers.append(spheres.centers[a:b] @ T[:3, :3].T + T[:3, 3])
-        radii.append(spheres.radii[a:b])
+        # balls sorted along the link's main axis, cut into chunks of CHUNK neighbours
+        c = spheres.centers[a:b]
+        axis = np.linalg.svd(c - c.mean(axis=0))[2][0] if b - a > 1 else np.zeros(3)
+        sorted_balls = a + np.argsort(c @ axis, kind="stable")
         g_bc.append(T[:3, :3] @ bcenter[i] + T[:3, 3])
-    counts = np.array([len(r) for r in radii], dtype=np.int64)
+        chunks.append([(len(order) + k, len(order) + min(k + CHUNK, b - a)) for k in range(0, b - a, CHUNK)])
+        order += list(sorted_balls)
+    order = np.array(order, dtype=np.int64)
+    T_ball = T_body_link[spheres.sphere_link[order]]
+    centers = np.einsum("nij,nj->ni", T_ball[:, :3, :3], spheres.centers[order]) + T_ball[:, :3, 3]
+    radii = spheres.radii[order]
+    counts = np.array([b - a for a, b in (ranges[i] for i in links)], dtype=np.int64)
     stops = np.cumsum(counts)
+    cranges = np.array([c for group in chunks for c in group], dtype=np.int64).reshape(-1, 2)
+    cbcenter, cbradius = np.zeros((len(cranges), 3)), np.zeros(len(cranges))
+    for k, (a, b) in enumerate(cranges):
+        cbcenter[k] = 0.5 * (np.min(centers[a:b] - radii[a:b, None], axis=0) + np.max(centers[a:b] + radii[a:b, None], axis=0))
+        cbradius[k] = np.max(np.linalg.norm(centers[a:b] - cbcenter[k], axis=1) + radii[a:b])
+    chunk_stops = np.cumsum([len(group) for group in chunks]).astype(np.int64)
     groups = {
         "link": np.array(links, dtype=np.int64),
         "frame": np.array([frame_of[int(body[i])] for i in links], dtype=np.int64),
         "ranges": np.column_stack([stops - counts, stops]).astype(np.int64).reshape(-1, 2),
-        "centers": np.ascontiguousarray(np.concatenate(centers) if centers else np.zeros((0, 3))),
-        "radii": np.concatenate(radii) if radii else np.zeros(0),
+        "centers": np.ascontiguousarray(centers.reshape(-1, 3)),
+        "radii": np.ascontiguousarray(radii),
         "bcenter": np.ascontiguousarray(np.array(g_bc, dtype=float).reshape(-1, 3)),
         "bradius": bradius[links] if links else np.zeros(0),
+        "chunks": np.column_stack([chunk_stops - [len(g) for g in chunks], chunk_stops]).astype(np.int64).reshape(-1, 2),
+        "cranges": cranges, "cbcenter": cbcenter, "cbradius": cbradius,
+        "order": order,
     }
     return frames, groups
 
@@ -171,14 +194,18 @@ class SphereChecker:
             self.T_world_base,
             *(frames[k] for k in ("parent", "jtype", "origin", "axis", "qidx", "mult", "offset")),
             groups["frame"], groups["ranges"], groups["centers"], groups["radii"], groups["bcenter"],
-            groups["bradius"], ~static,
+            groups["bradius"], ~static, groups["chunks"], groups["cranges"], groups["cbcenter"], groups["cbradius"],
             d["otype"], d["opose"], d["oparam"], d["oaabb"], np.array(pairs, dtype=np.int64).reshape(-1, 2),
         )
         """The arrays of the compiled kernels (see :func:`~prehensile.collision.sphere_kernels.clearance`)."""
         self.group_links = groups["link"]
         """(G,) the link of each ball group of the kernels; ``data[-1]`` (P, 2) pairs groups."""
+        self.ball_order = groups["order"]
+        """(S,) the sphere model's ball behind each of the kernels' balls."""
         self._scratch = K.make_scratch(self.data)
         self._scales = K.unit_scales(self.data)
+        world = self.data[:-1] + (np.zeros((0, 2), dtype=np.int64),)
+        self._world_only = (world, K.unit_scales(world))
         # balls on the root body do not move: test them against the world once, here
         static_data = list(self.data)
         static_data[14] = static  # gtest: only the root body's groups
@@ -199,9 +226,9 @@ class SphereChecker:
             K.check_batch(flat, self.data, self._scratch, self._scales, out, False)
         return out.reshape(q.shape[:-1])
 
-    def clearance(self, q: np.ndarray, cap: float = np.inf) -> np.ndarray:
-        """(*batch,) smallest distance (m) between a ball and an obstacle or a ball of a
-        non-allowed link, for q (*batch, dof); values above ``cap`` come back as ``cap``.
+    def clearance(self, q: np.ndarray, cap: float = np.inf, self_pairs: bool = True) -> np.ndarray:
+        """(*batch,) smallest distance (m) between a ball and an obstacle or (if ``self_pairs``)
+        a ball of a non-allowed link, for q (*batch, dof); values above ``cap`` come back as ``cap``.
 
         Negative means a collision (the value is then some negative distance, not the depth).
         Balls on the root body are not measured against the world (they never move; see
@@ -209,7 +236,8 @@ class SphereChecker:
         """
         q = self.model.check_configuration(q)
         flat = np.ascontiguousarray(q.reshape(-1, self.model.dof))
-        out = np.array([K.clearance(row, self.data, self._scratch, float(cap), self._scales) for row in flat])
+        data, scales = (self.data, self._scales) if self_pairs else self._world_only
+        out = np.array([K.clearance(row, data, self._scratch, float(cap), scales) for row in flat])
         if self.static_hit:
             out[:] = -np.inf
         return out.reshape(q.shape[:-1])

@@ -107,12 +107,30 @@ def _place(poses, f, c, i, out, k):
 
 
 def make_scratch(data):
-    """Work arrays for :func:`clearance` with the arrays ``data``: (poses, wc, wb, placed)."""
-    T_world_base, fparent, centers, gframe = data[0], data[1], data[11], data[8]
+    """Work arrays for :func:`clearance` with the arrays ``data``: (poses, balls, groups'
+    bounding balls, chunks' bounding balls, chunk flags), world coordinates."""
+    T_world_base, fparent, centers, gframe, cranges = data[0], data[1], data[11], data[8], data[16]
     poses = np.empty((fparent.shape[0] + 1, 4, 4))  # poses[0] = base, frame f at f + 1
     poses[0] = T_world_base
     return (poses, np.empty((max(centers.shape[0], 1), 3)), np.empty((max(gframe.shape[0], 1), 3)),
-            np.zeros(max(gframe.shape[0], 1), dtype=np.bool_))
+            np.empty((max(cranges.shape[0], 1), 3)), np.zeros(max(cranges.shape[0], 1), dtype=np.int64))
+
+
+@njit(cache=True, inline="always")
+def _chunk_center(poses, f, cbcenter, k, wk, placed):
+    """Place chunk k's bounding ball (frame f) once per configuration."""
+    if not placed[k] & 1:
+        _place(poses, f + 1, cbcenter, k, wk, k)
+        placed[k] |= 1
+
+
+@njit(cache=True, inline="always")
+def _chunk_balls(poses, f, centers, cranges, k, wc, placed):
+    """Place chunk k's balls (frame f) once per configuration."""
+    if not placed[k] & 2:
+        for s in range(cranges[k, 0], cranges[k, 1]):
+            _place(poses, f + 1, centers, s, wc, s)
+        placed[k] |= 2
 
 
 # no reference counting (``_nrt=False``): the kernel allocates nothing, and the increfs and
@@ -131,26 +149,30 @@ def clearance(q, data, scratch, cap, scales):
     count as free). ``cap = 0`` gives a plain collision test.
 
     ``data`` = (T_world_base, fparent, fjtype, forigin, faxis, fqidx, fmult, foffset, gframe,
-    granges, centers, radii, gbcenter, gbradius, gtest, otype, opose, oparam, oaabb, pairs).
-    Frames (F) are the moving rigid bodies (a link and everything fixed to it): ``fparent``
-    (-1 for the world base), joint type, origin (F, 4, 4) in the parent frame, axis, q index,
-    mimic multiplier and offset. Groups (G) are the links with balls: ``gframe`` (G,) their
-    frame, ``granges`` (G, 2) their balls ``[start, stop)`` (centres in the frame), and a
-    bounding ball ``gbcenter`` (G, 3), ``gbradius`` (G,); groups are sorted by frame.
-    ``gtest`` (G,) bool marks the groups tested against obstacles, ``pairs`` (P, 2) the group
-    pairs tested against each other. ``scales`` = (gscale (G,), pscale (P, 2), bscale (S, C),
-    pcut (P,) int64): ``gscale[g]`` and ``pscale[p]`` must bound the scales of the group's
-    balls (world, and each side of pair p); scales must be positive (a tiny value for a ball
-    that does not move: it then only counts if it collides). ``scratch`` comes from
-    :func:`make_scratch`.
+    granges, centers, radii, gbcenter, gbradius, gtest, gchunks, cranges, cbcenter, cbradius,
+    otype, opose, oparam, oaabb, pairs). Frames (F) are the moving rigid bodies (a link and
+    everything fixed to it): ``fparent`` (-1 for the world base), joint type, origin (F, 4, 4)
+    in the parent frame, axis, q index, mimic multiplier and offset. Groups (G) are the links
+    with balls: ``gframe`` (G,) their frame, ``granges`` (G, 2) their balls ``[start, stop)``
+    (centres in the frame), a bounding ball ``gbcenter`` (G, 3), ``gbradius`` (G,), and their
+    chunks ``gchunks`` (G, 2): runs of neighbouring balls ``cranges`` (C, 2) with bounding
+    balls ``cbcenter`` (C, 3), ``cbradius`` (C,); groups are sorted by frame. ``gtest`` (G,)
+    bool marks the groups tested against obstacles, ``pairs`` (P, 2) the group pairs tested
+    against each other. ``scales`` = (gscale (G,), pscale (P, 2), bscale (S, C'), pcut (P,)
+    int64): ``gscale[g]`` and ``pscale[p]`` must bound the scales of the group's balls (world,
+    and each side of pair p); scales must be positive (a tiny value for a ball that does not
+    move: it then only counts if it collides). ``scratch`` comes from :func:`make_scratch`.
+
+    Order: forward kinematics, the self pairs (links close in the chain are near in most
+    configurations, so the best distance drops early and prunes most world tests), then the
+    world. Each pair of bounding balls (group, then chunk) that cannot beat the best distance
+    so far is skipped with everything inside it.
     """
-    (_, fparent, fjtype, forigin, faxis, fqidx, fmult, foffset, gframe, granges, centers, radii,
-     gbcenter, gbradius, gtest, otype, opose, oparam, oaabb, pairs) = data
-    poses, wc, wb, placed = scratch
+    (_, fparent, fjtype, forigin, faxis, fqidx, fmult, foffset, gframe, granges, centers, radii, gbcenter, gbradius,
+     gtest, gchunks, cranges, cbcenter, cbradius, otype, opose, oparam, oaabb, pairs) = data
+    poses, wc, wb, wk, placed = scratch
     gscale, pscale, bscale, pcut = scales
     best = cap
-    # frames parents-first; each group meets the obstacles as soon as its frame is known,
-    # so a collision skips the remaining FK
     g = 0
     for f in range(fparent.shape[0]):
         value = 0.0
@@ -159,63 +181,76 @@ def clearance(q, data, scratch, cap, scales):
         _link_pose(poses, fparent[f] + 1, forigin, f, fjtype[f], faxis, value, f + 1)
         while g < gframe.shape[0] and gframe[g] == f:
             _place(poses, f + 1, gbcenter, g, wb, g)
-            placed[g] = False
-            if gtest[g]:
-                bx, by, bz, br = wb[g, 0], wb[g, 1], wb[g, 2], gbradius[g]
-                for o in range(otype.shape[0]):
-                    reach = best * gscale[g] + br
-                    if (bx + reach <= oaabb[o, 0] or bx - reach >= oaabb[o, 3] or by + reach <= oaabb[o, 1]
-                            or by - reach >= oaabb[o, 4] or bz + reach <= oaabb[o, 2] or bz - reach >= oaabb[o, 5]):
-                        continue
-                    d2, grow = _core_distance2(otype, opose, oparam, o, bx, by, bz)
-                    reach = best * gscale[g] + br + grow
-                    if d2 >= reach * reach:
-                        continue
-                    if not placed[g]:
-                        for s in range(granges[g, 0], granges[g, 1]):
-                            _place(poses, f + 1, centers, s, wc, s)
-                        placed[g] = True
-                    for s in range(granges[g, 0], granges[g, 1]):
-                        d2, grow = _core_distance2(otype, opose, oparam, o, wc[s, 0], wc[s, 1], wc[s, 2])
-                        reach = best * bscale[s, 0] + radii[s] + grow
-                        if d2 < reach * reach:
-                            best = (np.sqrt(d2) - grow - radii[s]) / bscale[s, 0]
-                            if best < 0.0:
-                                return best
+            for k in range(gchunks[g, 0], gchunks[g, 1]):
+                placed[k] = 0
             g += 1
     for p in range(pairs.shape[0]):
         i, j, c = pairs[p, 0], pairs[p, 1], pcut[p]
+        fi, fj, both = gframe[i], gframe[j], pscale[p, 0] + pscale[p, 1]
         dx, dy, dz = wb[i, 0] - wb[j, 0], wb[i, 1] - wb[j, 1], wb[i, 2] - wb[j, 2]
-        reach = best * (pscale[p, 0] + pscale[p, 1]) + gbradius[i] + gbradius[j]
+        reach = best * both + gbradius[i] + gbradius[j]
         if dx * dx + dy * dy + dz * dz >= reach * reach:
             continue
-        if not placed[i]:
-            for s in range(granges[i, 0], granges[i, 1]):
-                _place(poses, gframe[i] + 1, centers, s, wc, s)
-            placed[i] = True
-        if not placed[j]:
-            for s in range(granges[j, 0], granges[j, 1]):
-                _place(poses, gframe[j] + 1, centers, s, wc, s)
-            placed[j] = True
-        for s in range(granges[i, 0], granges[i, 1]):
-            dx, dy, dz = wc[s, 0] - wb[j, 0], wc[s, 1] - wb[j, 1], wc[s, 2] - wb[j, 2]
-            reach = best * (bscale[s, c] + pscale[p, 1]) + radii[s] + gbradius[j]
-            if dx * dx + dy * dy + dz * dz >= reach * reach:  # ball s is farther from all of group j
+        for ki in range(gchunks[i, 0], gchunks[i, 1]):
+            _chunk_center(poses, fi, cbcenter, ki, wk, placed)
+            dx, dy, dz = wk[ki, 0] - wb[j, 0], wk[ki, 1] - wb[j, 1], wk[ki, 2] - wb[j, 2]
+            reach = best * both + cbradius[ki] + gbradius[j]
+            if dx * dx + dy * dy + dz * dz >= reach * reach:
                 continue
-            for t in range(granges[j, 0], granges[j, 1]):
-                dx, dy, dz = wc[s, 0] - wc[t, 0], wc[s, 1] - wc[t, 1], wc[s, 2] - wc[t, 2]
-                scale = bscale[s, c] + bscale[t, c]
-                reach = best * scale + radii[s] + radii[t]
-                if dx * dx + dy * dy + dz * dz < reach * reach:
-                    best = (np.sqrt(dx * dx + dy * dy + dz * dz) - radii[s] - radii[t]) / scale
-                    if best < 0.0:
-                        return best
+            for kj in range(gchunks[j, 0], gchunks[j, 1]):
+                _chunk_center(poses, fj, cbcenter, kj, wk, placed)
+                dx, dy, dz = wk[ki, 0] - wk[kj, 0], wk[ki, 1] - wk[kj, 1], wk[ki, 2] - wk[kj, 2]
+                reach = best * both + cbradius[ki] + cbradius[kj]
+                if dx * dx + dy * dy + dz * dz >= reach * reach:
+                    continue
+                _chunk_balls(poses, fi, centers, cranges, ki, wc, placed)
+                _chunk_balls(poses, fj, centers, cranges, kj, wc, placed)
+                for s in range(cranges[ki, 0], cranges[ki, 1]):
+                    dx, dy, dz = wc[s, 0] - wk[kj, 0], wc[s, 1] - wk[kj, 1], wc[s, 2] - wk[kj, 2]
+                    reach = best * (bscale[s, c] + pscale[p, 1]) + radii[s] + cbradius[kj]
+                    if dx * dx + dy * dy + dz * dz >= reach * reach:  # ball s is farther from all of chunk kj
+                        continue
+                    for t in range(cranges[kj, 0], cranges[kj, 1]):
+                        dx, dy, dz = wc[s, 0] - wc[t, 0], wc[s, 1] - wc[t, 1], wc[s, 2] - wc[t, 2]
+                        scale = bscale[s, c] + bscale[t, c]
+                        reach = best * scale + radii[s] + radii[t]
+                        if dx * dx + dy * dy + dz * dz < reach * reach:
+                            best = (np.sqrt(dx * dx + dy * dy + dz * dz) - radii[s] - radii[t]) / scale
+                            if best < 0.0:
+                                return best
+    for g in range(gframe.shape[0]):
+        if not gtest[g]:
+            continue
+        bx, by, bz, br, f = wb[g, 0], wb[g, 1], wb[g, 2], gbradius[g], gframe[g]
+        for o in range(otype.shape[0]):
+            reach = best * gscale[g] + br
+            if (bx + reach <= oaabb[o, 0] or bx - reach >= oaabb[o, 3] or by + reach <= oaabb[o, 1]
+                    or by - reach >= oaabb[o, 4] or bz + reach <= oaabb[o, 2] or bz - reach >= oaabb[o, 5]):
+                continue
+            d2, grow = _core_distance2(otype, opose, oparam, o, bx, by, bz)
+            reach = best * gscale[g] + br + grow
+            if d2 >= reach * reach:
+                continue
+            for k in range(gchunks[g, 0], gchunks[g, 1]):
+                _chunk_center(poses, f, cbcenter, k, wk, placed)
+                d2, grow = _core_distance2(otype, opose, oparam, o, wk[k, 0], wk[k, 1], wk[k, 2])
+                reach = best * gscale[g] + cbradius[k] + grow
+                if d2 >= reach * reach:
+                    continue
+                _chunk_balls(poses, f, centers, cranges, k, wc, placed)
+                for s in range(cranges[k, 0], cranges[k, 1]):
+                    d2, grow = _core_distance2(otype, opose, oparam, o, wc[s, 0], wc[s, 1], wc[s, 2])
+                    reach = best * bscale[s, 0] + radii[s] + grow
+                    if d2 < reach * reach:
+                        best = (np.sqrt(d2) - grow - radii[s]) / bscale[s, 0]
+                        if best < 0.0:
+                            return best
     return best
 
 
 def unit_scales(data) -> tuple:
     """Scales for :func:`clearance` that make it the clearance in metres."""
-    balls, pairs = data[11].shape[0], data[19].shape[0]
+    balls, pairs = data[11].shape[0], data[-1].shape[0]
     bscale = np.full((balls, 2), 0.5)
     bscale[:, 0] = 1.0
     return (np.ones(data[13].shape[0]), np.full((pairs, 2), 0.5), bscale, np.ones(pairs, dtype=np.int64))

@@ -1,9 +1,9 @@
 """Exact certification of paths on the true geometry (coal), with per-pair free bubbles.
 
 A path is certified when every configuration on it (straight segments between waypoints) is
-collision-free for the exact collision geometry, up to the usual discrete fallback: where a
-pair of bodies is closer than ``resolution``, it is checked at configurations no more than
-``resolution`` apart in its own motion bound.
+collision-free for the exact collision geometry, up to the usual discrete fallback: the walk
+along the path never steps farther than ``resolution`` (m, the most any part can move), so
+where bodies are closer than that they are checked at configurations that far apart.
 
 Free bubbles (Quinlan 1995; Vahrenkamp 2011 C.2). For a pair (a robot part and an obstacle,
 or two parts on different links) with exact distance d at some configuration, and a weight row
@@ -13,13 +13,16 @@ its accumulated motion along the path stays below d. Self pairs need no halving 
 link moves (in the frame of their deepest common ancestor) only through the joints below that
 ancestor on its own side, so W already bounds the *relative* motion of the two (the two sides
 use disjoint joints; shared joints move both rigidly). Every pair therefore carries its own
-"safe until" arc length and is measured again only when the walk along the path reaches it;
-far pairs are measured once per path.
+"safe until" arc length; the walk stops where the first pair runs out and measures it again,
+together with every pair that has used up half of its bubble (fewer stops). Far pairs are
+measured a few times per path.
 
-Distances come first from convex bounds (the convex hull of a mesh, the primitive itself),
-which contain the geometry, so their distance is a lower bound of the exact one. Only when a
-hull overlaps does the exact mesh decide (``coal.collide``, then the exact distance for the
-bubble). Meshes are surfaces, as in :class:`~prehensile.collision.exact.ExactChecker`.
+Distances are lower bounds, each from the cheapest source that suffices: enclosing balls of
+the parts against the obstacles' bounding boxes (or against each other) while they are
+farther apart than 5 cm; else coal on convex bounds (the convex hull of a mesh, the
+primitive itself), which contain the geometry; and only where a hull overlaps, the exact mesh
+(``coal.collide``, then the exact distance for the bubble). A collision is only ever declared
+by the exact geometry. Meshes are surfaces, as in :class:`~prehensile.collision.exact.ExactChecker`.
 """
 
 from __future__ import annotations
@@ -30,15 +33,17 @@ from typing import Sequence
 
 import coal
 import numpy as np
+from numba import njit
 
 from prehensile.collision.exact import coal_geometry
 from prehensile.collision.world import Obstacle
-from prehensile.kinematics.forward import forward_kinematics
+from prehensile.kinematics.kernels import fk_into
 from prehensile.model.geometry import Box, Capsule, Cylinder, Geometry, Mesh, Sphere
 from prehensile.model.robot_model import RobotModel
 from prehensile.planning.context import PlanningContext, motion_weights
 
 _TOLERANCE = 1e-6  # m taken off every coal distance (GJK converges to about this)
+_FAR = 0.05  # m: pairs whose enclosing balls are this far apart are not measured exactly
 
 
 @dataclass(frozen=True)
@@ -130,16 +135,22 @@ class ExactCertifier:
         self.model = model
         self.T_world_base = np.asarray(T_world_base, dtype=float)
         self._parts = []  # (link, T_link_geom, exact, convex bound, exact is convex)
+        balls = []  # per part: a ball containing it (centre in the link frame, radius)
         for link, geometries in enumerate(model.collisions):
             for g in geometries:
                 exact = coal_geometry(g.shape)
                 self._parts.append((link, np.asarray(g.T_link_geom, dtype=float), exact,
                                     _convex_bound(g.shape, exact), not isinstance(g.shape, Mesh)))
+                balls.append(_enclosing_ball(g))
         self._obstacles = []
+        boxes = []  # per obstacle: world AABB (min xyz, max xyz)
         for o in obstacles:
-            exact = coal_geometry(o.shape)
-            self._obstacles.append((_transform(np.asarray(o.T_world_shape, dtype=float)), exact,
-                                    _convex_bound(o.shape, exact), not isinstance(o.shape, Mesh)))
+            exact, T = coal_geometry(o.shape), np.asarray(o.T_world_shape, dtype=float)
+            self._obstacles.append((_transform(T), exact, _convex_bound(o.shape, exact), not isinstance(o.shape, Mesh)))
+            exact.computeLocalAABB()
+            lo, hi = np.asarray(exact.aabb_local.min_), np.asarray(exact.aabb_local.max_)
+            center, half = T[:3, :3] @ (0.5 * (lo + hi)) + T[:3, 3], np.abs(T[:3, :3]) @ (0.5 * (hi - lo))
+            boxes.append(np.concatenate([center - half, center + half]))
         pairs, links = [], []  # (part, obstacle or -1, other part or -1); (link a, link b or -1)
         for a, (la, *_) in enumerate(self._parts):
             for o in range(len(self._obstacles)):
@@ -149,6 +160,12 @@ class ExactCertifier:
                 if la != lb and not acm[la, lb]:
                     pairs.append((a, -1, b)), links.append((la, lb))
         self._pairs = pairs
+        table = np.array(pairs, dtype=np.int64).reshape(-1, 3)
+        self._pair_a, self._pair_o, self._pair_b = table[:, 0], table[:, 1], table[:, 2]
+        self._ball_center = np.array([b[0] for b in balls]).reshape(-1, 3)
+        self._ball_radius = np.array([b[1] for b in balls])
+        self._part_link = np.array([p[0] for p in self._parts], dtype=np.int64)
+        self._boxes = np.array(boxes).reshape(-1, 6)
         centers, radii = _link_balls(model)
         self._weights = motion_weights(model, centers, radii, np.array(links, dtype=np.int64).reshape(-1, 2))
         # resolution metric: how far any part can move per unit of each variable
@@ -175,9 +192,8 @@ class ExactCertifier:
             return -1.0, 2
         return max(coal.distance(exact_a, Ta, exact_b, Tb, self._request, coal.DistanceResult()) - _TOLERANCE, 0.0), 3
 
-    def _place(self, q: np.ndarray, parts: np.ndarray) -> list:
-        """Transforms of the parts used by the pairs ``parts`` at configuration q."""
-        poses = forward_kinematics(self.model, q, self.T_world_base)
+    def _place(self, poses: np.ndarray, parts) -> list:
+        """coal transforms of ``parts`` with the link poses (L, 4, 4)."""
         placed = [None] * len(self._parts)
         for k in parts:
             link, T_link_geom = self._parts[k][:2]
@@ -189,44 +205,104 @@ class ExactCertifier:
     def certify(self, path: np.ndarray, resolution: float) -> CertifyReport:
         """Certify the piecewise-linear path (N, dof); see :func:`certify_path`."""
         start = time.perf_counter()
-        path = self.model.check_configuration(path, "path").reshape(-1, self.model.dof)
+        path = np.ascontiguousarray(self.model.check_configuration(path, "path").reshape(-1, self.model.dof))
         inside = self.model.within_limits(path)
         if not inside.all():
             bad = int(np.argmin(inside))
             return CertifyReport(False, max(bad - 1, 0), time_s=time.perf_counter() - start)
-        n = len(path)
+        n, count = len(path), len(self._pairs)
         delta = np.abs(np.diff(path, axis=0))
-        seg = np.zeros((len(self._pairs), n))  # per pair, motion bound of each segment (last: 0)
+        seg = np.zeros((count, n))  # per pair, motion bound of each segment (last: 0)
         seg[:, :-1] = (self._weights @ delta.T) if n > 1 else 0.0
-        arc = np.concatenate([np.zeros((len(self._pairs), 1)), np.cumsum(seg[:, :-1], axis=1)], axis=1)
-        step = np.append(delta @ self._reach, 0.0)  # farthest any part moves on each segment
-        safe = np.full(len(self._pairs), -np.inf)  # a pair is measured again once its arc reaches this
-        i, t, checked, queries, lowest = 0, 0.0, 0, 0, np.inf
+        arc = np.ascontiguousarray(np.concatenate([np.zeros((count, 1)), np.cumsum(seg[:, :-1], axis=1)], axis=1))
+        walk = (path, arc, seg, np.append(delta @ self._reach, 0.0), np.full(count, -np.inf), np.zeros(count),
+                float(resolution), np.zeros(3), np.empty((self.model.n_links, 4, 4)), self.T_world_base,
+                self.model.joint_table, self._pair_a, self._pair_o, self._pair_b, self._part_link, self._ball_center,
+                self._ball_radius, self._boxes, np.empty(count, dtype=np.int64), np.empty(count), np.empty(count),
+                np.empty(self.model.dof))
+        safe, early, position, poses, due, here, bound = walk[4], walk[5], walk[7], walk[8], walk[18], walk[19], walk[20]
+        checked, queries, lowest = 0, 0, np.inf
         while True:
-            here = arc[:, i] + t * seg[:, i]
-            due = np.flatnonzero(here >= safe - 1e-12)  # rounding: a pair reached exactly is due
-            if len(due):
-                q = path[i] + t * (path[i + 1] - path[i]) if t > 0.0 else path[i]
-                used = {self._pairs[p][0] for p in due} | ({self._pairs[p][2] for p in due} - {-1})
-                placed = self._place(q, np.fromiter(used, dtype=np.int64))
-                checked += 1
-                for p in due:
-                    d, used_queries = self._lower_bound(int(p), placed)
-                    queries += used_queries
-                    lowest = min(lowest, d)
-                    if d < 0.0:
-                        bad = i - 1 if (t == 0.0 and i > 0) else i
-                        return CertifyReport(False, bad, checked, queries, lowest, time.perf_counter() - start)
-                    safe[p] = here[p] + d
-            if i == n - 1:
+            m = _next_due(*walk)
+            if m < 0:
                 return CertifyReport(True, -1, checked, queries, lowest, time.perf_counter() - start)
-            moving = seg[:, i] > 0.0
-            expire = (safe[moving] - arc[moving, i]) / seg[moving, i]
-            t_next = max(np.min(expire, initial=np.inf), t + resolution / step[i] if step[i] > 0 else np.inf)
+            checked += 1
+            d = bound[:m].copy()
+            near = np.flatnonzero(d < _FAR)  # far pairs keep the ball bound; the near ones ask coal
+            if len(near):
+                close = due[near]
+                placed = self._place(poses, set(self._pair_a[close]) | (set(self._pair_b[close]) - {-1}))
+                for k in near:
+                    d[k], used_queries = self._lower_bound(int(due[k]), placed)
+                    queries += used_queries
+                    if d[k] < 0.0:
+                        i, t = int(position[0]), position[1]
+                        bad = i - 1 if (t == 0.0 and i > 0) else i
+                        return CertifyReport(False, bad, checked, queries, float(d[k]), time.perf_counter() - start)
+            lowest = min(lowest, float(d.min()))
+            safe[due[:m]], early[due[:m]] = here[:m] + d, 0.5 * d + 1e-12  # (rounding: reached exactly is due)
+
+
+@njit(cache=True)
+def _next_due(path, arc, seg, step, safe, early, res, position, poses, T_world_base, table, pair_a, pair_o, pair_b,
+              part_link, ball_center, ball_radius, boxes, due, here, bound, q):
+    """Walk to the next configuration on the path where some pair is due; returns how many
+    (-1 at the end of the path).
+
+    A pair p is due once its arc (``arc[p, i] + t * seg[p, i]`` on segment i at t) reaches
+    ``safe[p] - early[p]``. ``position`` = (segment, t, 1 if that configuration is done): the
+    walk moves on to the nearest expiry of a pair, but at least ``res / step[i]`` and at most to
+    the next waypoint. There it fills ``due[:m]``, ``here[:m]`` (their arcs), ``poses`` (link
+    poses, via FK) and ``bound[:m]`` (lower bounds of their distances from enclosing balls:
+    part ball vs obstacle AABB, or part ball vs part ball).
+    """
+    n, count = path.shape[0], arc.shape[0]
+    i, t = int(position[0]), position[1]
+    while True:
+        if position[2] != 0.0:  # done here: move on
+            if i == n - 1:
+                return -1
+            t_next = t + res / step[i] if step[i] > 0.0 else np.inf
+            expire = np.inf
+            for p in range(count):
+                if seg[p, i] > 0.0:
+                    expire = min(expire, (safe[p] - 1e-12 - arc[p, i]) / seg[p, i])
+            t_next = max(t_next, expire)
             if t_next >= 1.0:
                 i, t = i + 1, 0.0
             else:
                 t = t_next
+        position[0], position[1], position[2] = i, t, 1.0
+        m = 0
+        for p in range(count):
+            at = arc[p, i] + t * seg[p, i]
+            if at >= safe[p] - early[p]:
+                due[m], here[m] = p, at
+                m += 1
+        if m > 0:
+            break
+    for k in range(q.shape[0]):
+        q[k] = path[i, k] + t * (path[i + 1, k] - path[i, k]) if t > 0.0 else path[i, k]
+    fk_into(q, T_world_base, table, poses)
+    for k in range(m):
+        p = due[k]
+        a, o, b = pair_a[p], pair_o[p], pair_b[p]
+        gap = 0.0
+        for x in range(3):
+            ca = _place(poses[part_link[a]], ball_center[a], x)
+            if o >= 0:
+                e = max(boxes[o, x] - ca, ca - boxes[o, 3 + x], 0.0)
+            else:
+                e = ca - _place(poses[part_link[b]], ball_center[b], x)
+            gap += e * e
+        bound[k] = np.sqrt(gap) - ball_radius[a] - (ball_radius[b] if o < 0 else 0.0)
+    return m
+
+
+@njit(cache=True, inline="always")
+def _place(T, c, x):
+    """Coordinate x of the point T (4, 4) @ c (3,)."""
+    return T[x, 0] * c[0] + T[x, 1] * c[1] + T[x, 2] * c[2] + T[x, 3]
 
 
 def certify_path(ctx: PlanningContext, path: np.ndarray, resolution: float | None = None) -> CertifyReport:
@@ -237,3 +313,33 @@ def certify_path(ctx: PlanningContext, path: np.ndarray, resolution: float | Non
     a pair is closer than that (see the module doc). Attached objects are included.
     """
     return ctx.certifier.certify(path, ctx.certify_resolution if resolution is None else float(resolution))
+
+
+def certified_escape(ctx: PlanningContext, q: np.ndarray, toward: np.ndarray, rng: np.random.Generator,
+                     clearance: float, reach: float = 0.1, attempts: int = 12, samples: int = 16) -> np.ndarray | None:
+    """A configuration the sphere model accepts, at least ``clearance`` (m) from the world,
+    joined to q (dof,) by a straight segment certified on the exact geometry; None if there is none.
+
+    For endpoints that only the conservative sphere model rejects, or holds in a pocket
+    narrower than the resolution (a grasp in contact range of the object): planners start
+    from the escape configuration instead. Directions (planned joints only): toward ``toward``
+    (dof,) first, then random ones from ``rng``; along each, the first of ``samples``
+    configurations up to ``reach`` m (workspace-weighted) within the limits, free and clear
+    enough is tried.
+    """
+    idx, w = ctx.space.indices, ctx.space.weights
+    if not ctx.certifier.certify(q[None], ctx.certify_resolution).ok:
+        return None
+    directions = np.vstack([toward[idx] - q[idx], rng.normal(size=(attempts - 1, len(idx)))])
+    steps = reach * np.arange(1, samples + 1) / samples
+    for d in directions:
+        length = float(w @ np.abs(d))
+        if length <= 0.0:
+            continue
+        candidates = np.repeat(q[None], samples, axis=0)
+        candidates[:, idx] += steps[:, None] * (d / length)
+        good = np.flatnonzero(ctx.model.within_limits(candidates) & ctx.spheres.is_free(candidates)
+                              & (ctx.spheres.clearance(candidates, clearance, self_pairs=False) >= clearance))
+        if len(good) and certify_path(ctx, np.stack([q, candidates[good[0]]])).ok:
+            return candidates[good[0]]
+    return None

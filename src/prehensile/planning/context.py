@@ -1,17 +1,19 @@
 """Planning context: the robot, the world, grasped objects and the compiled checkers, in one place.
 
 A :class:`PlanningContext` holds what every planner query needs: the configuration space of
-the planned joints, the sphere checker (planning), the exact checker (certification) and the
+the planned joints, the sphere checker (planning), the exact checker and certifier and the
 arrays the compiled planners run on. Grasped objects (:class:`AttachedObject`) become extra
 links fixed to the link that holds them, so both checkers, the metric and the motion bounds
 cover them without special cases.
 
-Motion bounds ("free bubbles", Vahrenkamp 2011 C.2 after Quinlan 1995): for every ball group
-(a link) and every self pair the context keeps a row of per-variable weights W (m per rad or
-m per m) such that moving the configuration by dq moves the group's balls (or one group
-relative to the other) by at most ``W @ |dq|``. A pair's row covers only the joints that move
-one of its links but not both (the joints above both move them rigidly together), so the
-bound is far tighter than the workspace-weighted metric for links close in the chain.
+Motion bounds ("free bubbles", Vahrenkamp 2011 C.2 after Quinlan 1995): every ball b gets
+per-joint weights ``W[b, k]`` (:func:`ball_joint_weights`, m per rad or m per m) bounding how
+fast it moves when joint k turns, so a motion dq moves it by at most ``W[b] @ |dq|``. Against
+another link only the joints that move one of the two but not both count (the joints above
+both move them rigidly together): :func:`motion_weights` for pairs of links, and per-ball
+tables by depth in the tree for the compiled motion check
+(:func:`prehensile.planning.kernels.motion_free`). Both are far tighter than the
+workspace-weighted metric for links close in the chain.
 """
 
 from __future__ import annotations
@@ -238,10 +240,8 @@ class PlanningContext:
     def _motion_tables(self) -> tuple:
         model, checker = self.collision_model, self.spheres
         granges, pairs = checker.data[9], checker.data[-1]
-        links = np.concatenate([np.full(b - a, link) for link, (a, b) in zip(checker.group_links, granges)]
-                               ).astype(np.int64) if len(granges) else np.zeros(0, dtype=np.int64)
-        order = np.concatenate([np.arange(*self.sphere_model.link_ranges()[link]) for link in checker.group_links]
-                               ).astype(np.int64) if len(granges) else np.zeros(0, dtype=np.int64)
+        order = checker.ball_order
+        links = self.sphere_model.sphere_link[order]
         W = ball_joint_weights(model, links, self.sphere_model.centers[order], self.sphere_model.radii[order])
         moving = np.isin(model.joint_type, (REVOLUTE, PRISMATIC))
         paths = [[k for k in reversed(model.path_to_root(int(link))) if moving[k]] for link in range(model.n_links)]

@@ -1,19 +1,19 @@
 """Compiled planning primitives: random numbers, the weighted metric, nearest neighbours and
 motion checks with free bubbles.
 
-Motion check (:func:`motion_free`). The segment qa -> qb is parameterised by s in [0, 1].
-For every ball group g and self pair p the context holds weights W (see
-:func:`prehensile.planning.context.motion_weights`); ``W[g] @ |qb - qa|`` bounds how far the
-group's balls move over the whole segment (relative to the world, or to the pair's other
-link). The sphere kernel divides each clearance by that bound, so a configuration at s with
-scaled clearance c proves the whole stretch [s - c, s + c] free: no ball can travel farther
-than its distance to anything it may hit ("free bubbles", Quinlan 1995; Vahrenkamp 2011 C.2).
-The check tests qb first (a planner's new node), then qa, then the midpoints of the stretches
-not yet covered, breadth first (a bisection order, so a collision in the middle shows early).
-Where clearances are small, every sample covers at least half a resolution step on either
-side, i.e. the segment is sampled so that no ball moves more than ``resolution`` between
-checks (Vahrenkamp 2011 B.2). A free answer is therefore at least as strong as sampling at
-``resolution``; where the balls keep a distance it is continuous.
+Motion check (:func:`motion_free`). The segment qa -> qb is parameterised by s in [0, 1]. From
+the context's per-ball joint weights (:mod:`prehensile.planning.context`) it first bounds how
+far every ball can move over the whole segment: against the world (all joints on its path)
+and against the other link of each self pair (only the joints below their common ancestor).
+The sphere kernel divides each ball-pair clearance by the sum of those bounds, so a
+configuration at s with scaled clearance c proves the whole stretch [s - c, s + c] free: no
+ball can travel farther than its distance to anything it may hit ("free bubbles", Quinlan
+1995; Vahrenkamp 2011 C.2). The check tests qb first (a planner's new node), then qa, then the
+midpoints of the stretches not yet covered, breadth first (a bisection order, so a collision
+in the middle shows early). Where clearances are small every sample covers at least half a
+resolution step on either side, i.e. the segment is sampled so that no ball moves more than
+``resolution`` between checks (Vahrenkamp 2011 B.2). A free answer is therefore at least as
+strong as sampling at ``resolution``; where the balls keep a distance it is continuous.
 """
 
 from __future__ import annotations
@@ -23,6 +23,7 @@ from numba import njit
 
 from prehensile.collision import sphere_kernels as SK
 
+_CAP = 0.25
 _TINY = 1e-12  # scale of a group that does not move on a segment: it only counts if it collides
 _GOLDEN, _MIX1, _MIX2 = np.uint64(0x9E3779B97F4A7C15), np.uint64(0xBF58476D1CE4E5B9), np.uint64(0x94D049BB133111EB)
 _S30, _S27, _S31, _S11 = np.uint64(30), np.uint64(27), np.uint64(31), np.uint64(11)
@@ -120,9 +121,9 @@ def motion_free(qa, qb, res, checker, scratch, motion, counters, budget):
         FREE, BLOCKED, or UNDECIDED when the budget ran out first.
     """
     scales, queue, q = motion[2], motion[3], motion[4]
-    longest = _scales(qa, qb, checker[9], checker[19], motion)
+    longest = _scales(qa, qb, checker[9], checker[-1], motion)
     counters[0] += 1
-    cover_b = SK.clearance(qb, checker, scratch, 1.0, scales)
+    cover_b = SK.clearance(qb, checker, scratch, _CAP, scales)
     if cover_b < 0.0:
         return BLOCKED
     if longest <= _TINY or cover_b >= 1.0:  # nothing moves, or qb's bubble holds the segment
@@ -132,7 +133,7 @@ def motion_free(qa, qb, res, checker, scratch, motion, counters, budget):
     half = 0.5 * res / longest
     hi = 1.0 - max(cover_b, half)
     counters[0] += 1
-    cover_a = SK.clearance(qa, checker, scratch, hi, scales)
+    cover_a = SK.clearance(qa, checker, scratch, min(hi, _CAP), scales)
     if cover_a < 0.0:
         return BLOCKED
     lo = max(cover_a, half)
@@ -151,7 +152,7 @@ def motion_free(qa, qb, res, checker, scratch, motion, counters, budget):
             q[k] = qa[k] + mid * (qb[k] - qa[k])
         counters[0] += 1
         spent += 1
-        cover = SK.clearance(q, checker, scratch, h if h > half else 0.0, scales)
+        cover = SK.clearance(q, checker, scratch, min(h, _CAP) if h > half else 0.0, scales)
         if cover < 0.0:
             return BLOCKED
         r = max(cover, half)

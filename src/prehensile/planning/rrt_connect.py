@@ -6,8 +6,17 @@ checks with the sphere model (:func:`~prehensile.planning.kernels.motion_free`).
 iteration one tree extends one step toward a uniform sample, stepping from its nearest node
 *toward* the sample (the thesis prints Alg. 1 line 6 reversed), and the other tree connects
 toward the new node by repeated steps until it reaches it or is blocked; then the trees swap.
-Every goal of a goal set is a root of the goal tree. The direct start -> goal edges are tried
-first.
+Every goal of a goal set is a root of the goal tree. The direct edges between the roots are
+tried first.
+
+Edges are checked lazily (Bohlin & Kavraki 2000; the lazy checking of Vahrenkamp 2011 C.2):
+a new edge gets ``eager_checks`` clearance evaluations (its end first, then bisection, which
+finds most collisions); undecided edges stay provisional until they lie on a path between the
+trees, are then checked in full, and a blocked one cuts its subtree off the tree.
+
+Endpoints in contact range of obstacles (grasps) may be rejected by the conservative balls
+although the exact geometry is free; they get a short escape motion certified exactly
+(:func:`~prehensile.planning.certify.certified_escape`) as their first tree edge.
 
 numba cannot read the clock, so Python runs the kernel in chunks of iterations and checks the
 time budget between them (chunks sized from the measured time per iteration); all state
@@ -29,7 +38,7 @@ import numpy as np
 from numba import njit
 
 from prehensile.errors import PrehensileError
-from prehensile.planning.certify import CertifyReport, certify_path
+from prehensile.planning.certify import CertifyReport, certified_escape, certify_path
 from prehensile.planning.context import PlanningContext
 from prehensile.planning.kernels import (
     BLOCKED, FREE, NO_LIMIT, distance, motion_free, nearest, rng_state, uniform,
@@ -63,17 +72,23 @@ class RRTConnectSettings:
         certify: certify the path on the exact geometry before returning SUCCESS.
         certify_retries: searches repeated (at half the resolution each) after a path failed
             certification, before giving up with CERTIFICATION_FAILED.
+        escape: an endpoint within the limits that the sphere model rejects, or holds less
+            than half the resolution from the world, gets a short straight escape motion
+            certified on the exact geometry (:func:`~prehensile.planning.certify.certified_escape`)
+            as its first tree edge: the conservative balls of a grasp in contact range of the
+            object would otherwise make it unreachable.
     """
 
     time_budget_s: float = 1.0
     step: float = 1.0
-    eager_checks: int = 1000
+    eager_checks: int = 8
     max_nodes: int = 100_000
     shortcut: bool = True
-    shortcut_iterations: int = 64
+    shortcut_iterations: int = 16
     shortcut_time_s: float = 0.05
     certify: bool = True
     certify_retries: int = 2
+    escape: bool = True
 
     def __post_init__(self) -> None:
         if not (self.time_budget_s > 0 and self.step > 0 and self.eager_checks >= 1 and self.max_nodes >= 2
@@ -164,17 +179,21 @@ def search(nodes, parents, flags, counters, path, rng, iterations, step, res, bu
 
     Tree 0 (start) and tree 1 (goals) hold nodes (2, capacity, dof) with parents (2,
     capacity) (-1 for roots), flags (2, capacity) and sizes ``counters[SIZE:SIZE + 2]``; the
-    roots are in place before the first call, which tries the direct start -> goal edges.
+    roots (and their escape nodes) are in place before the first call, which tries the direct
+    edges between them. Nodes flagged _DEAD are never extended (cut off, or a root that only
+    its certified escape edge leaves).
     ``sample`` (dof,) holds the values of the joints not planned; ``lower``, ``upper`` (n,)
     bound the sampled joints ``idx``. ``budget``: see ``RRTConnectSettings.eager_checks``. On
     FOUND, path[:counters[PATH_LENGTH]] is the path (path rows >= 2 * capacity).
     """
     if counters[STARTED] == 0:
         counters[STARTED] = 1
-        for g in range(counters[SIZE + 1]):
-            if motion_free(nodes[0, 0], nodes[1, g], res, checker, scratch, motion, counters, NO_LIMIT) == FREE:
-                _write_path(nodes, parents, counters, 0, g, False, path)
-                return FOUND
+        for a in range(counters[SIZE]):
+            for g in range(counters[SIZE + 1]):
+                if not (flags[0, a] | flags[1, g]) & _DEAD and motion_free(
+                        nodes[0, a], nodes[1, g], res, checker, scratch, motion, counters, NO_LIMIT) == FREE:
+                    _write_path(nodes, parents, counters, a, g, False, path)
+                    return FOUND
     for _ in range(iterations):
         t = counters[ITERATIONS] % 2
         counters[ITERATIONS] += 1
@@ -202,18 +221,20 @@ def search(nodes, parents, flags, counters, path, rng, iterations, step, res, bu
 
 
 class _Trees:
-    """Tree arrays for :func:`search`, doubled when full."""
+    """Tree arrays for :func:`search`, doubled when full; built from (q, parent, flags) lists."""
 
-    def __init__(self, start: np.ndarray, goals: np.ndarray, capacity: int) -> None:
-        dof = len(start)
-        capacity = max(capacity, len(goals))
+    def __init__(self, start_nodes: list, goal_nodes: list, capacity: int) -> None:
+        dof = len(start_nodes[0][0])
+        capacity = max(capacity, len(start_nodes), len(goal_nodes))
         self.nodes = np.empty((2, capacity, dof))
         self.parents = np.full((2, capacity), -1, dtype=np.int64)
         self.flags = np.zeros((2, capacity), dtype=np.int64)
         self.path = np.empty((2 * capacity, dof))
-        self.nodes[0, 0], self.nodes[1, :len(goals)] = start, goals
         self.counters = np.zeros(8, dtype=np.int64)
-        self.counters[SIZE], self.counters[SIZE + 1] = 1, len(goals)
+        for t, tree in enumerate((start_nodes, goal_nodes)):
+            for i, (q, parent, flags) in enumerate(tree):
+                self.nodes[t, i], self.parents[t, i], self.flags[t, i] = q, parent, flags
+            self.counters[SIZE + t] = len(tree)
 
     def grow(self, limit: int) -> bool:
         capacity = self.nodes.shape[1]
@@ -228,12 +249,12 @@ class _Trees:
         return True
 
 
-def _search(ctx: PlanningContext, start: np.ndarray, goals: np.ndarray, settings: RRTConnectSettings,
-            state: np.ndarray, res: float, deadline: float) -> tuple[np.ndarray | None, int, np.ndarray]:
-    """One search until ``deadline`` (perf_counter s); (path or None, goal row, counters)."""
+def _search(ctx: PlanningContext, roots: tuple[list, list], settings: RRTConnectSettings, state: np.ndarray,
+            res: float, deadline: float) -> tuple[np.ndarray | None, int, np.ndarray]:
+    """One search until ``deadline`` (perf_counter s); (path or None, goal root, counters)."""
     space = ctx.space
-    trees = _Trees(start, goals, min(1024, settings.max_nodes))
-    work = (space.lower, space.upper, start.copy(), ctx.spheres.data, ctx.scratch, ctx.motion_arrays(res))
+    trees = _Trees(*roots, min(1024, settings.max_nodes))
+    work = (space.lower, space.upper, roots[0][0][0].copy(), ctx.spheres.data, ctx.scratch, ctx.motion_arrays(res))
     chunk = 128
     while True:
         begun, before = time.perf_counter(), trees.counters[ITERATIONS]
@@ -245,9 +266,41 @@ def _search(ctx: PlanningContext, start: np.ndarray, goals: np.ndarray, settings
             return trees.path[:n].copy(), int(trees.counters[GOAL_ROOT]), trees.counters
         if code == FULL and not trees.grow(settings.max_nodes) or now >= deadline:
             return None, -1, trees.counters
-        done = max(trees.counters[ITERATIONS] - before, 1)
-        per_iteration = (now - begun) / done
-        chunk = int(np.clip(0.25 * (deadline - now) / max(per_iteration, 1e-7), 16, 1 << 16))
+        per_iteration = (now - begun) / max(trees.counters[ITERATIONS] - before, 1)
+        # a quarter of the time left, growing at most twofold (iterations slow down as trees grow)
+        chunk = int(np.clip(0.25 * (deadline - now) / max(per_iteration, 1e-7), 1, 2 * chunk))
+
+
+def _roots(ctx: PlanningContext, start: np.ndarray, goals: np.ndarray, settings: RRTConnectSettings,
+           rng: np.random.Generator) -> tuple[list, list, np.ndarray] | PlanStatus:
+    """Tree roots [(q, parent, flags)] of the start and the usable goals, with their escape
+    nodes, and the goal rows of the goal tree's roots; or INVALID_START / INVALID_GOAL."""
+    both = np.vstack([start, goals])
+    inside = ctx.model.within_limits(both)
+    valid = inside & ctx.spheres.is_free(both)
+    tight = inside & (ctx.spheres.clearance(both, ctx.resolution, self_pairs=False) < 0.5 * ctx.resolution)
+    trees, rows = ([], []), []
+    for i, q in enumerate(both):
+        tree, toward = (trees[0], goals[0]) if i == 0 else (trees[1], start)
+        escape = None
+        if settings.escape and inside[i] and (tight[i] or not valid[i]):
+            escape = certified_escape(ctx, q, toward, rng, 0.5 * ctx.resolution)
+        if not valid[i] and escape is None:
+            if i == 0:
+                return PlanStatus.INVALID_START
+            continue
+        tree.append((q, -1, 0 if valid[i] else _DEAD))
+        if escape is not None:
+            tree.append((escape, len(tree) - 1, _CHECKED))
+        if i > 0:
+            rows.append(i - 1)
+    if not rows:
+        return PlanStatus.INVALID_GOAL
+    # roots first: move the goal tree's escape nodes behind every root
+    order = sorted(range(len(trees[1])), key=lambda k: trees[1][k][1] >= 0)
+    renumber = {old: new for new, old in enumerate(order)}
+    goal_nodes = [(q, renumber[p] if p >= 0 else -1, f) for q, p, f in (trees[1][k] for k in order)]
+    return trees[0], goal_nodes, np.array(rows)
 
 
 def rrt_connect(ctx: PlanningContext, q_start: np.ndarray, q_goal: np.ndarray,
@@ -265,10 +318,12 @@ def rrt_connect(ctx: PlanningContext, q_start: np.ndarray, q_goal: np.ndarray,
     Returns:
         :class:`PlanResult`: on SUCCESS ``path`` (N, dof) runs from exactly q_start to exactly
         the reached goal (``goal_index`` its row), ``info`` has ``length`` (m, weighted),
-        ``attempts`` and ``certify`` (:class:`CertifyReport`, if certified). INVALID_START /
-        INVALID_GOAL when the start / every goal is outside the limits or in collision (sphere
-        model), TIMEOUT when the budget ran out (or every tree filled up),
-        CERTIFICATION_FAILED when every path found failed the exact check.
+        ``attempts``, ``escapes`` (certified escape edges among the roots) and ``certify``
+        (:class:`CertifyReport`, if certified). INVALID_START /
+        INVALID_GOAL when the start / every goal is outside the limits, or in collision for
+        the sphere model without a certified escape (see ``settings.escape``); TIMEOUT when
+        the budget ran out (or every tree filled up); CERTIFICATION_FAILED when every path
+        found failed the exact check.
     """
     t0 = time.perf_counter()
     rng = np.random.default_rng(0) if rng is None else rng
@@ -282,13 +337,11 @@ def rrt_connect(ctx: PlanningContext, q_start: np.ndarray, q_goal: np.ndarray,
     if np.any(np.abs(goals[:, fixed] - start[fixed]) > 1e-9):
         raise PrehensileError("rrt_connect: goal and start differ in joints that are not planned "
                               f"({', '.join(model.joint_names[i] for i in fixed)})")
-    valid = model.within_limits(np.vstack([start, goals])) & ctx.spheres.is_free(np.vstack([start, goals]))
     empty = np.zeros((0, model.dof))
-    if not valid[0]:
-        return PlanResult(PlanStatus.INVALID_START, empty, PlanStats(plan_time_s=time.perf_counter() - t0))
-    goal_rows = np.flatnonzero(valid[1:])
-    if len(goal_rows) == 0:
-        return PlanResult(PlanStatus.INVALID_GOAL, empty, PlanStats(plan_time_s=time.perf_counter() - t0))
+    roots = _roots(ctx, start, goals, settings, rng)
+    if isinstance(roots, PlanStatus):
+        return PlanResult(roots, empty, PlanStats(plan_time_s=time.perf_counter() - t0))
+    *roots, goal_rows = roots
     state = rng_state(rng)
     deadline = t0 + settings.time_budget_s
     totals = dict(iterations=0, nodes=0, collision_checks=0, plan_time_s=0.0, simplify_time_s=0.0, certify_time_s=0.0)
@@ -297,7 +350,7 @@ def rrt_connect(ctx: PlanningContext, q_start: np.ndarray, q_goal: np.ndarray,
     for attempt in range(settings.certify_retries + 1):
         res = ctx.resolution / 2 ** attempt
         begun = time.perf_counter()
-        path, root, counters = _search(ctx, start, goals[goal_rows], settings, state, res, deadline)
+        path, root, counters = _search(ctx, roots, settings, state, res, deadline)
         totals["plan_time_s"] += time.perf_counter() - (t0 if attempt == 0 else begun)
         totals["iterations"] += int(counters[ITERATIONS])
         totals["nodes"] += int(counters[SIZE] + counters[SIZE + 1])
@@ -309,7 +362,8 @@ def rrt_connect(ctx: PlanningContext, q_start: np.ndarray, q_goal: np.ndarray,
             begun = time.perf_counter()
             path = shortcut(ctx, path, rng, settings.shortcut_iterations, settings.shortcut_time_s, res, checks)
             totals["simplify_time_s"] += time.perf_counter() - begun
-        info = {"attempts": attempt + 1, "length": space.path_length(path[:, space.indices])}
+        escapes = sum(flags == _CHECKED for tree in roots for _, _, flags in tree)
+        info = {"attempts": attempt + 1, "length": space.path_length(path[:, space.indices]), "escapes": escapes}
         if settings.certify:
             report = certify_path(ctx, path)
             totals["certify_time_s"] += report.time_s

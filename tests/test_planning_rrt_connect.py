@@ -1,0 +1,262 @@
+"""RRT-Connect, motion checks, motion bounds and shortcutting (prehensile.planning)."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+
+from prehensile.collision.spheres import generate_sphere_model
+from prehensile.collision.world import Obstacle
+from prehensile.kinematics.forward import forward_kinematics
+from prehensile.model.builder import JointSpec, LinkSpec, build_model
+from prehensile.model.geometry import Box, Capsule, Geometry, Sphere
+from prehensile.planning import (
+    AttachedObject, PlanningContext, PlanStatus, RRTConnectSettings, rrt_connect, shortcut,
+)
+from prehensile.planning.context import ball_joint_weights
+from prehensile.spatial import make_pose
+
+from conftest import MBM, require_shared
+
+ALONG_X = np.array([[0.0, 0, 1], [0, 1, 0], [-1, 0, 0]])  # rotates a shape's z axis onto x
+FAST = RRTConnectSettings(time_budget_s=2.0)
+
+
+def _arm(axes=("z", "z", "z")):
+    """Three capsule links of 0.4, 0.4, 0.25 m along x, joints about ``axes``, on a base disc
+    at the origin; a geometry-less ``tip`` 0.3 m along the last link."""
+    unit = {"x": [1.0, 0, 0], "y": [0, 1.0, 0], "z": [0, 0, 1.0]}
+    capsule = lambda length: Geometry(Capsule(0.04, length - 0.08), make_pose(ALONG_X, [length / 2, 0, 0]))  # noqa: E731
+    links = [LinkSpec("base", collisions=[Geometry(Box((0.16, 0.16, 0.1)))]),
+             LinkSpec("l1", collisions=[capsule(0.4)]), LinkSpec("l2", collisions=[capsule(0.4)]),
+             LinkSpec("l3", collisions=[capsule(0.25)]), LinkSpec("tip")]
+    joints = [JointSpec("j1", "revolute", "base", "l1", make_pose(position=[0, 0, 0.1]), unit[axes[0]], -3.0, 3.0),
+              JointSpec("j2", "revolute", "l1", "l2", make_pose(position=[0.4, 0, 0]), unit[axes[1]], -2.6, 2.6),
+              JointSpec("j3", "revolute", "l2", "l3", make_pose(position=[0.4, 0, 0]), unit[axes[2]], -2.6, 2.6),
+              JointSpec("jt", "fixed", "l3", "tip", make_pose(position=[0.3, 0, 0]))]
+    return build_model("arm", "test", links, joints)
+
+
+def _box(name, center, size):
+    return Obstacle(name, Box(tuple(size)), make_pose(position=center))
+
+
+@pytest.fixture(scope="module")
+def arm():
+    model = _arm()
+    return model, generate_sphere_model(model, cache=False)
+
+
+def _exact_free_path(ctx, path, step=0.002):
+    """Every segment of path sampled every ``step`` m (weighted metric) is free for coal."""
+    idx = ctx.space.indices
+    t = [np.linspace(0, 1, int(np.ceil(ctx.space.distance(a[idx], b[idx]) / step)) + 1) for a, b in zip(path[:-1], path[1:])]
+    q = np.concatenate([a + s[:, None] * (b - a) for a, b, s in zip(path[:-1], path[1:], t)])
+    return bool(np.all(ctx.exact.is_free(q)))
+
+
+def _check_result(ctx, result, start, goal):
+    assert result.status is PlanStatus.SUCCESS, result
+    path = result.path
+    np.testing.assert_array_equal(path[0], start)
+    np.testing.assert_array_equal(path[-1], goal)
+    assert np.all(ctx.model.within_limits(path))
+    assert result.info["certify"].ok
+    assert _exact_free_path(ctx, path)
+    s = result.stats
+    assert s.plan_time_s > 0 and s.simplify_time_s >= 0 and s.certify_time_s > 0 and s.collision_checks > 0
+
+
+def test_plans_around_a_wall_and_every_edge_is_free(arm):
+    model, spheres = arm
+    wall = _box("wall", [0.55, 0.25, 0.1], [0.1, 0.3, 0.3])
+    ctx = PlanningContext(model, [wall], spheres=spheres)
+    start, goal = np.array([0.0, 0.2, 0.0]), np.array([1.2, -0.3, 0.4])
+    assert not ctx.check_motion(start, goal)  # the straight motion sweeps through the wall
+    result = rrt_connect(ctx, start, goal, FAST, np.random.default_rng(1))
+    _check_result(ctx, result, start, goal)
+    assert len(result.path) >= 3
+    for a, b in zip(result.path[:-1], result.path[1:]):
+        assert ctx.check_motion(a, b)
+
+
+def test_direct_edge_is_taken_when_free(arm):
+    model, spheres = arm
+    ctx = PlanningContext(model, [], spheres=spheres)
+    start, goal = np.array([0.0, 0.3, 0.2]), np.array([1.0, 0.5, -0.2])
+    result = rrt_connect(ctx, start, goal, FAST)
+    _check_result(ctx, result, start, goal)
+    assert len(result.path) == 2 and result.stats.iterations == 0
+
+
+def test_same_seed_gives_the_same_path(arm):
+    model, spheres = arm
+    ctx = PlanningContext(model, [_box("wall", [0.55, 0.25, 0.1], [0.1, 0.3, 0.3])], spheres=spheres)
+    start, goal = np.array([0.0, 0.2, 0.0]), np.array([1.2, -0.3, 0.4])
+    paths = [rrt_connect(ctx, start, goal, FAST, np.random.default_rng(5)).path for _ in range(2)]
+    np.testing.assert_array_equal(paths[0], paths[1])
+
+
+def test_infeasible_problem_times_out_within_the_budget(arm):
+    model, spheres = arm
+    # a wall along the +x axis from near the base to beyond reach; joint 1 cannot go round (|q1| <= 3 < pi)
+    wall = _box("wall", [0.75, 0.0, 0.1], [1.1, 0.02, 0.6])
+    ctx = PlanningContext(model, [wall], spheres=spheres)
+    start, goal = np.array([0.8, 0.0, 0.0]), np.array([-0.8, 0.0, 0.0])
+    assert ctx.is_valid(np.stack([start, goal])).all()
+    budget = 0.3
+    begun = time.perf_counter()
+    result = rrt_connect(ctx, start, goal, RRTConnectSettings(time_budget_s=budget))
+    elapsed = time.perf_counter() - begun
+    assert result.status is PlanStatus.TIMEOUT and result.path.shape == (0, model.dof)
+    assert budget <= result.stats.plan_time_s < budget + 0.1 and elapsed < budget + 0.2
+
+
+def test_invalid_start_and_goal(arm):
+    model, spheres = arm
+    block = _box("block", [0.6, 0.0, 0.1], [0.1, 0.1, 0.3])  # on the stretched-out arm
+    ctx = PlanningContext(model, [block], spheres=spheres)
+    free = np.array([1.5, 0.0, 0.0])
+    settings = RRTConnectSettings(time_budget_s=0.2)
+    assert rrt_connect(ctx, np.zeros(3), free, settings).status is PlanStatus.INVALID_START
+    assert rrt_connect(ctx, free, np.zeros(3), settings).status is PlanStatus.INVALID_GOAL
+    assert rrt_connect(ctx, free, np.array([0.0, 2.9, 0.0]), settings).status is PlanStatus.INVALID_GOAL  # limits
+    with pytest.raises(Exception, match="q_goal"):
+        rrt_connect(ctx, free, np.zeros(4), settings)
+
+
+def test_goal_set_reports_the_goal_reached(arm):
+    model, spheres = arm
+    wall = _box("wall", [0.55, 0.25, 0.1], [0.1, 0.3, 0.3])
+    ctx = PlanningContext(model, [wall, _box("block", [0.6, 0.0, 0.1], [0.1, 0.1, 0.3])], spheres=spheres)
+    start = np.array([1.2, -0.3, 0.4])
+    goals = np.array([[0.0, 0.0, 0.0], [0.0, 0.2, 0.0], [-1.0, 0.5, 0.5]])  # the first one collides
+    result = rrt_connect(ctx, start, goals, FAST, np.random.default_rng(2))
+    assert result.goal_index in (1, 2)
+    _check_result(ctx, result, start, goals[result.goal_index])
+
+
+def test_attached_object_is_carried_around_obstacles(arm):
+    model, spheres = arm
+    post = Obstacle("post", Sphere(0.06), make_pose(position=[0.446, 1.016, 0.1]))  # 0.23 m off the arm
+    start, goal = np.array([0.0, 1.2, 0.0]), np.array([0.6, 1.2, 0.0])
+    bare = PlanningContext(model, [post], spheres=spheres)
+    assert bare.check_motion(start, goal)  # the arm alone sweeps past the post
+    rod = AttachedObject("rod", "l3", Box((0.5, 0.05, 0.05)), make_pose(position=[0.3, 0.0, 0.0]))
+    ctx = PlanningContext(model, [post], spheres=spheres, attached=[rod])
+    assert "attached/rod" in ctx.collision_model.link_names
+    assert ctx.is_valid(np.stack([start, goal])).all()  # holding it touches the last link: allowed
+    assert not ctx.check_motion(start, goal)  # but the rod sweeps through the post
+    result = rrt_connect(ctx, start, goal, FAST, np.random.default_rng(3))
+    _check_result(ctx, result, start, goal)  # ctx.exact includes the rod
+
+
+def test_goal_the_balls_reject_is_reached_by_a_certified_escape(arm):
+    model, spheres = arm
+    # stretched out, l3 spans x 0.8..1.05 at y 0; a box face 2 mm beside its surface
+    box = _box("box", [0.92, 0.04 + 0.002 + 0.05, 0.1], [0.1, 0.1, 0.1])
+    ctx = PlanningContext(model, [box], spheres=spheres)
+    start, goal = np.array([-1.0, 0.5, 0.0]), np.zeros(3)
+    assert ctx.exact.is_free(goal) and not ctx.is_valid(goal)
+    result = rrt_connect(ctx, start, goal, FAST, np.random.default_rng(0))
+    _check_result(ctx, result, start, goal)
+    strict = RRTConnectSettings(time_budget_s=0.2, escape=False)
+    assert rrt_connect(ctx, start, goal, strict).status is PlanStatus.INVALID_GOAL
+    inside = _box("inside", [0.92, 0.0, 0.1], [0.05, 0.05, 0.05])  # exactly colliding: no escape
+    assert rrt_connect(PlanningContext(model, [inside], spheres=spheres), start, goal, FAST).status \
+        is PlanStatus.INVALID_GOAL
+
+
+def test_context_checks_shapes_and_limits(arm):
+    model, spheres = arm
+    ctx = PlanningContext(model, [_box("block", [0.6, 0.0, 0.1], [0.1, 0.1, 0.3])], spheres=spheres, joints=["j1", "j2"])
+    assert ctx.space.n == 2
+    q = np.array([[0.0, 0.0, 0.0], [1.5, 0.0, 0.0], [0.0, 2.9, 0.0]])
+    np.testing.assert_array_equal(ctx.is_valid(q), [False, True, False])
+    assert ctx.is_valid(q.reshape(3, 1, 3)).shape == (3, 1)
+    start, goal = np.array([1.5, 0.0, 0.3]), np.array([2.0, 0.5, 0.3])
+    result = rrt_connect(ctx, start, goal, FAST)
+    _check_result(ctx, result, start, goal)
+    assert np.all(result.path[:, 2] == 0.3)  # j3 is not planned
+    with pytest.raises(Exception, match="not planned"):
+        rrt_connect(ctx, start, np.array([2.0, 0.5, 0.0]), FAST)
+
+
+def test_shortcut_never_lengthens_nor_invalidates(arm):
+    model, spheres = arm
+    ctx = PlanningContext(model, [_box("wall", [0.55, 0.25, 0.1], [0.1, 0.3, 0.3])], spheres=spheres)
+    start, goal = np.array([0.0, 0.2, 0.0]), np.array([1.2, -0.3, 0.4])
+    raw = rrt_connect(ctx, start, goal, RRTConnectSettings(shortcut=False, certify=False), np.random.default_rng(4)).path
+    # a detour through valid random configurations, each leg free
+    rng = np.random.default_rng(0)
+    detour = [raw[0]]
+    for q in raw[1:]:
+        while True:
+            mid = 0.5 * (detour[-1] + q) + rng.normal(scale=0.2, size=3)
+            if ctx.check_motion(detour[-1], mid) and ctx.check_motion(mid, q):
+                detour += [mid, q]
+                break
+    detour = np.array(detour)
+    length = ctx.space.path_length(detour)
+    for seed in range(3):
+        short = shortcut(ctx, detour, np.random.default_rng(seed), iterations=50)
+        np.testing.assert_array_equal(short[0], start)
+        np.testing.assert_array_equal(short[-1], goal)
+        assert ctx.space.path_length(short) <= length + 1e-9
+        assert all(ctx.check_motion(a, b) for a, b in zip(short[:-1], short[1:]))
+    straight = np.array([start, 0.5 * (start + goal), goal])  # collinear: pruned without a check
+    assert len(shortcut(PlanningContext(model, [], spheres=spheres), straight, rng)) == 2
+
+
+@pytest.mark.parametrize("axes", [("z", "y", "x"), ("x", "z", "y")])
+def test_ball_joint_weights_bound_the_speed_of_every_ball(axes):
+    model = _arm(axes)
+    spheres = generate_sphere_model(model, cache=False)
+    W = ball_joint_weights(model, spheres.sphere_link, spheres.centers, spheres.radii)
+    rng = np.random.default_rng(0)
+    directions = rng.normal(size=(40, 3))
+    directions /= np.linalg.norm(directions, axis=1)[:, None]
+    for q in model.random_configurations(rng, 30):
+        for j in range(model.dof):
+            k = int(np.flatnonzero(model.joint_q_index == j)[0])
+            dq = np.zeros(model.dof)
+            dq[j] = 1e-7
+            before, after = forward_kinematics(model, q), forward_kinematics(model, q + dq)
+            for s, (link, c, r) in enumerate(zip(spheres.sphere_link, spheres.centers, spheres.radii)):
+                points = c + r * directions  # on the ball's surface: the fastest points of the ball
+                moved = np.linalg.norm((points @ after[link][:3, :3].T + after[link][:3, 3])
+                                       - (points @ before[link][:3, :3].T + before[link][:3, 3]), axis=1)
+                assert moved.max() / 1e-7 <= W[s, k] * (1 + 1e-5) + 1e-9
+
+
+def _mbm_setup():
+    require_shared(MBM)
+    from prehensile.collision.spheres import pad_sphere_model, spheres_from_urdf
+    from prehensile.model import load_urdf
+    from prehensile.scene.moveit import iter_mbm_problems
+
+    folder = MBM / "panda"
+    model = load_urdf(folder / "panda.urdf", folder / "panda.srdf")
+    spheres = pad_sphere_model(spheres_from_urdf(model, folder / "panda_spherized.urdf"), model)
+    return model, spheres, iter_mbm_problems(folder / "problems.tar.bz2")
+
+
+def test_mbm_problems_give_certified_exact_paths():
+    model, spheres, problems = _mbm_setup()
+    picked = {("table_pick_panda", 1), ("box_panda", 2), ("bookshelf_small_panda", 4), ("cage_panda", 5), ("cage_panda", 4)}
+    solved = escaped = 0
+    for problem in problems:
+        if (problem.scenario, problem.index) not in picked:
+            continue
+        ctx = PlanningContext(model, problem.scene.collision_obstacles(), spheres=spheres)
+        start, goal = problem.request.start_configuration(model), problem.request.goal_configuration(model)
+        result = rrt_connect(ctx, start, goal, FAST, np.random.default_rng(problem.index))
+        _check_result(ctx, result, start, goal)
+        solved += 1
+        if not ctx.is_valid(goal):  # cage 4: a grasp the padded balls reject, left by a certified escape
+            escaped += 1
+            strict = RRTConnectSettings(time_budget_s=0.2, escape=False)
+            assert rrt_connect(ctx, start, goal, strict).status is PlanStatus.INVALID_GOAL
+    assert solved == 5 and escaped == 1
