@@ -19,7 +19,9 @@ ALONG_X = np.array([[0.0, 0, 1], [0, 1, 0], [-1, 0, 0]])
 @pytest.fixture(scope="module")
 def arm():
     """Two capsule links (0.5 m, 0.4 m along x) on a base box, joints about z at 0.1 m height."""
-    capsule = lambda length: Geometry(Capsule(0.04, length - 0.08), make_pose(ALONG_X, [length / 2, 0, 0]))  # noqa: E731
+    def capsule(length):
+        return Geometry(Capsule(0.04, length - 0.08), make_pose(ALONG_X, [length / 2, 0, 0]))
+
     links = [LinkSpec("base", collisions=[Geometry(Box((0.16, 0.16, 0.1)))]),
              LinkSpec("l1", collisions=[capsule(0.5)]), LinkSpec("l2", collisions=[capsule(0.4)])]
     z = [0.0, 0, 1]
@@ -75,8 +77,9 @@ def test_self_collision_is_caught(arm):
 def test_agrees_with_dense_sampling_near_a_concave_mesh(arm):
     """A U-shaped mesh: its hull overlaps l2 inside the U, where only the exact mesh decides."""
     model, spheres = arm
-    parts = [trimesh.creation.box(size, trimesh.transformations.translation_matrix(t)) for size, t in
-             (((0.3, 0.04, 0.3), [0.0, 0.13, 0.0]), ((0.3, 0.04, 0.3), [0.0, -0.13, 0.0]), ((0.04, 0.3, 0.3), [0.13, 0, 0]))]
+    walls = (((0.3, 0.04, 0.3), [0.0, 0.13, 0.0]), ((0.3, 0.04, 0.3), [0.0, -0.13, 0.0]),
+             ((0.04, 0.3, 0.3), [0.13, 0.0, 0.0]))
+    parts = [trimesh.creation.box(size, trimesh.transformations.translation_matrix(t)) for size, t in walls]
     u = trimesh.util.concatenate(parts)
     mesh = Obstacle("u", Mesh.from_arrays(u.vertices, u.faces), make_pose(position=[0.8, 0.0, 0.1]))
     ctx = PlanningContext(model, [mesh], spheres=spheres)

@@ -28,7 +28,9 @@ def _arm(axes=("z", "z", "z")):
     """Three capsule links of 0.4, 0.4, 0.25 m along x, joints about ``axes``, on a base disc
     at the origin; a geometry-less ``tip`` 0.3 m along the last link."""
     unit = {"x": [1.0, 0, 0], "y": [0, 1.0, 0], "z": [0, 0, 1.0]}
-    capsule = lambda length: Geometry(Capsule(0.04, length - 0.08), make_pose(ALONG_X, [length / 2, 0, 0]))  # noqa: E731
+    def capsule(length):
+        return Geometry(Capsule(0.04, length - 0.08), make_pose(ALONG_X, [length / 2, 0, 0]))
+
     links = [LinkSpec("base", collisions=[Geometry(Box((0.16, 0.16, 0.1)))]),
              LinkSpec("l1", collisions=[capsule(0.4)]), LinkSpec("l2", collisions=[capsule(0.4)]),
              LinkSpec("l3", collisions=[capsule(0.25)]), LinkSpec("tip")]
@@ -52,9 +54,9 @@ def arm():
 def _exact_free_path(ctx, path, step=0.002):
     """Every segment of path sampled every ``step`` m (weighted metric) is free for coal."""
     idx = ctx.space.indices
-    t = [np.linspace(0, 1, int(np.ceil(ctx.space.distance(a[idx], b[idx]) / step)) + 1) for a, b in zip(path[:-1], path[1:])]
-    q = np.concatenate([a + s[:, None] * (b - a) for a, b, s in zip(path[:-1], path[1:], t)])
-    return bool(np.all(ctx.exact.is_free(q)))
+    q = [a + np.linspace(0, 1, int(np.ceil(ctx.space.distance(a[idx], b[idx]) / step)) + 1)[:, None] * (b - a)
+         for a, b in zip(path[:-1], path[1:])]
+    return bool(np.all(ctx.exact.is_free(np.concatenate(q))))
 
 
 def _check_result(ctx, result, start, goal):
@@ -171,7 +173,8 @@ def test_goal_the_balls_reject_is_reached_by_a_certified_escape(arm):
 
 def test_context_checks_shapes_and_limits(arm):
     model, spheres = arm
-    ctx = PlanningContext(model, [_box("block", [0.6, 0.0, 0.1], [0.1, 0.1, 0.3])], spheres=spheres, joints=["j1", "j2"])
+    block = _box("block", [0.6, 0.0, 0.1], [0.1, 0.1, 0.3])
+    ctx = PlanningContext(model, [block], spheres=spheres, joints=["j1", "j2"])
     assert ctx.space.n == 2
     q = np.array([[0.0, 0.0, 0.0], [1.5, 0.0, 0.0], [0.0, 2.9, 0.0]])
     np.testing.assert_array_equal(ctx.is_valid(q), [False, True, False])
@@ -188,7 +191,8 @@ def test_shortcut_never_lengthens_nor_invalidates(arm):
     model, spheres = arm
     ctx = PlanningContext(model, [_box("wall", [0.55, 0.25, 0.1], [0.1, 0.3, 0.3])], spheres=spheres)
     start, goal = np.array([0.0, 0.2, 0.0]), np.array([1.2, -0.3, 0.4])
-    raw = rrt_connect(ctx, start, goal, RRTConnectSettings(shortcut=False, certify=False), np.random.default_rng(4)).path
+    raw = rrt_connect(ctx, start, goal, RRTConnectSettings(shortcut=False, certify=False),
+                      np.random.default_rng(4)).path
     # a detour through valid random configurations, each leg free
     rng = np.random.default_rng(0)
     detour = [raw[0]]
@@ -245,7 +249,8 @@ def _mbm_setup():
 
 def test_mbm_problems_give_certified_exact_paths():
     model, spheres, problems = _mbm_setup()
-    picked = {("table_pick_panda", 1), ("box_panda", 2), ("bookshelf_small_panda", 4), ("cage_panda", 5), ("cage_panda", 4)}
+    picked = {("table_pick_panda", 1), ("box_panda", 2), ("bookshelf_small_panda", 4), ("cage_panda", 5),
+              ("cage_panda", 4)}
     solved = escaped = 0
     for problem in problems:
         if (problem.scenario, problem.index) not in picked:

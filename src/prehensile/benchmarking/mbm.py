@@ -19,7 +19,9 @@ Measured per problem and planner:
 
 Timing statistics (median, 95th percentile, mean) are over the solved problems, as in the
 MotionBenchMaker and VAMP reports; ``solved`` / ``total`` and the status counts say how many
-that is. Speed-ups are OMPL time / our time (> 1: ours faster).
+that is. Speed-ups are OMPL time / our time (> 1: ours faster): of the medians (and 95th
+percentiles) of each planner's solved problems, and "paired", the median of the per-problem
+ratio over the problems both solved.
 """
 
 from __future__ import annotations
@@ -231,14 +233,19 @@ def speedups(ours: dict, ompl: dict) -> dict:
     }
 
 
+def _paired(runs: Sequence[dict]) -> dict:
+    """Problems both planners solved and the median over them of OMPL's time / ours."""
+    both = [r for r in runs if r["ours"]["solved"] and r["ompl"]["solved"] and r["ours"]["time_s"] > 0]
+    speedups_ = [r["ompl"]["time_s"] / r["ours"]["time_s"] for r in both]
+    return {"paired_problems": len(both), "paired_median_speedup": float(np.median(speedups_)) if both else None}
+
+
 def _ratios(runs: Sequence[dict], ours: dict, ompl: dict) -> dict:
-    both = [r for r in runs if r["ours"]["solved"] and r["ompl"]["solved"]]
-    paired = [r["ompl"]["time_s"] / r["ours"]["time_s"] for r in both if r["ours"]["time_s"] > 0]
     return {
-        **speedups(ours["overall"], ompl["overall"]),
-        "paired_problems": len(both),
-        "paired_median_speedup": float(np.median(paired)) if paired else None,
-        "scenarios": {name: speedups(summary, ompl["scenarios"][name]) for name, summary in ours["scenarios"].items()},
+        **speedups(ours["overall"], ompl["overall"]), **_paired(runs),
+        "scenarios": {name: {**speedups(summary, ompl["scenarios"][name]),
+                             **_paired([r for r in runs if r["scenario"] == name])}
+                      for name, summary in ours["scenarios"].items()},
     }
 
 

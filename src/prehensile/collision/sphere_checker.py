@@ -3,7 +3,8 @@
 Forward kinematics and every test run in one compiled kernel
 (:mod:`prehensile.collision.sphere_kernels`) that stops at the first collision of each
 configuration; the same kernel gives (scaled) clearances for the planners' motion checks.
-Grasped objects join as extra links (:func:`prehensile.planning.context.attach_objects`). Boxes, spheres, cylinders and capsules are tested exactly (ball against solid).
+Grasped objects join as extra links (:func:`prehensile.planning.context.attach_objects`).
+Boxes, spheres, cylinders and capsules are tested exactly (ball against solid).
 Mesh obstacles are replaced by balls covering their triangles
 (:func:`~prehensile.collision.sphere_fit.cover_geometries`), which is conservative for surface
 contact, the same notion of contact as coal's mesh checks; a robot wholly inside a closed
@@ -138,7 +139,8 @@ def _frames_and_groups(model: RobotModel, spheres: SphereModel) -> tuple[dict, d
     cranges = np.array([c for group in chunks for c in group], dtype=np.int64).reshape(-1, 2)
     cbcenter, cbradius = np.zeros((len(cranges), 3)), np.zeros(len(cranges))
     for k, (a, b) in enumerate(cranges):
-        cbcenter[k] = 0.5 * (np.min(centers[a:b] - radii[a:b, None], axis=0) + np.max(centers[a:b] + radii[a:b, None], axis=0))
+        low, high = centers[a:b] - radii[a:b, None], centers[a:b] + radii[a:b, None]
+        cbcenter[k] = 0.5 * (low.min(axis=0) + high.max(axis=0))
         cbradius[k] = np.max(np.linalg.norm(centers[a:b] - cbcenter[k], axis=1) + radii[a:b])
     chunk_stops = np.cumsum([len(group) for group in chunks]).astype(np.int64)
     groups = {
@@ -149,7 +151,8 @@ def _frames_and_groups(model: RobotModel, spheres: SphereModel) -> tuple[dict, d
         "radii": np.ascontiguousarray(radii),
         "bcenter": np.ascontiguousarray(np.array(g_bc, dtype=float).reshape(-1, 3)),
         "bradius": bradius[links] if links else np.zeros(0),
-        "chunks": np.column_stack([chunk_stops - [len(g) for g in chunks], chunk_stops]).astype(np.int64).reshape(-1, 2),
+        "chunks": np.column_stack([chunk_stops - [len(g) for g in chunks], chunk_stops]).astype(np.int64)
+        .reshape(-1, 2),
         "cranges": cranges, "cbcenter": cbcenter, "cbradius": cbradius,
         "order": order,
     }

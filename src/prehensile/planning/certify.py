@@ -220,7 +220,8 @@ class ExactCertifier:
                 self.model.joint_table, self._pair_a, self._pair_o, self._pair_b, self._part_link, self._ball_center,
                 self._ball_radius, self._boxes, np.empty(count, dtype=np.int64), np.empty(count), np.empty(count),
                 np.empty(self.model.dof))
-        safe, early, position, poses, due, here, bound = walk[4], walk[5], walk[7], walk[8], walk[18], walk[19], walk[20]
+        safe, early, position, poses = walk[4], walk[5], walk[7], walk[8]
+        due, here, bound = walk[18], walk[19], walk[20]
         checked, queries, lowest = 0, 0, np.inf
         while True:
             m = _next_due(*walk)
@@ -316,7 +317,7 @@ def certify_path(ctx: PlanningContext, path: np.ndarray, resolution: float | Non
 
 
 def certified_escape(ctx: PlanningContext, q: np.ndarray, toward: np.ndarray, rng: np.random.Generator,
-                     clearance: float, reach: float = 0.1, attempts: int = 12, samples: int = 16) -> np.ndarray | None:
+                     clearance: float, reach: float = 0.3, attempts: int = 24, samples: int = 32) -> np.ndarray | None:
     """A configuration the sphere model accepts, at least ``clearance`` (m) from the world,
     joined to q (dof,) by a straight segment certified on the exact geometry; None if there is none.
 

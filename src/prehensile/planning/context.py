@@ -90,7 +90,8 @@ def attach_objects(model: RobotModel, spheres: SphereModel, acm: np.ndarray, att
     geometries = tuple(obj.geometries() for obj in attached)
     augmented = dataclasses.replace(
         model, link_names=model.link_names + tuple(names), link_joint_names=model.link_joint_names + tuple(names),
-        link_parent=np.concatenate([model.link_parent, parents]), joint_type=np.concatenate([model.joint_type, [FIXED] * k]),
+        link_parent=np.concatenate([model.link_parent, parents]),
+        joint_type=np.concatenate([model.joint_type, [FIXED] * k]),
         joint_origin=np.concatenate([model.joint_origin, origins]),
         joint_axis=np.concatenate([model.joint_axis, np.zeros((k, 3))]),
         joint_q_index=np.concatenate([model.joint_q_index, [-1] * k]),
@@ -225,7 +226,8 @@ class PlanningContext:
         self.collision_model, self.sphere_model, self.acm = attach_objects(model, base_spheres, base_acm, self.attached)
         centers, radii = self.sphere_model.link_bounds()
         self.space = ConfigurationSpace(self.collision_model, joints, q_ref, centers=centers, radii=radii)
-        self.spheres = SphereChecker(self.collision_model, self.obstacles, self.T_world_base, self.sphere_model, self.acm)
+        self.spheres = SphereChecker(self.collision_model, self.obstacles, self.T_world_base, self.sphere_model,
+                                     self.acm)
         self.motion = self._motion_tables()
         """(Wpath (S, D), qpath (S, D), scales, queue (Q, 2), q (dof,)) for
         :func:`prehensile.planning.kernels.motion_free`: per ball of the sphere checker the
