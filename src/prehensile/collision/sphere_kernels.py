@@ -24,45 +24,22 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from prehensile.kinematics.kernels import FAST, joint_transform
+
 SPHERE, BOX, CYLINDER, CAPSULE = 0, 1, 2, 3
-FIXED, REVOLUTE, PRISMATIC = 0, 1, 2
-# fast-math without the "no NaN / no inf" assumptions (reassociation changes only the last bits)
-FAST = {"nsz", "arcp", "contract", "afn", "reassoc"}
 
 
 @njit(cache=True, inline="always")
 def _link_pose(poses, pp, origin, f, jtype, axis, value, out):
-    """poses[out] (top 3 rows) = poses[pp] @ origin[f] @ motion(jtype, axis[f], value).
+    """poses[out] (top 3 rows) = poses[pp] @ origin[f] @ motion (:func:`joint_transform`).
 
     Arrays are indexed in place (no views), which keeps numba from reference counting.
-
-    The joint motion is a rotation about ``axis`` by ``value`` (Rodrigues) or a translation
-    along it; everything stays in registers until the final write.
     """
-    m00, m01, m02, m10, m11, m12, m20, m21, m22 = 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0
-    tx, ty, tz = 0.0, 0.0, 0.0
-    if jtype == REVOLUTE:
-        x, y, z = axis[f, 0], axis[f, 1], axis[f, 2]
-        cs, sn = np.cos(value), np.sin(value)
-        t = 1.0 - cs
-        m00, m01, m02 = t * x * x + cs, t * x * y - sn * z, t * x * z + sn * y
-        m10, m11, m12 = t * x * y + sn * z, t * y * y + cs, t * y * z - sn * x
-        m20, m21, m22 = t * x * z - sn * y, t * y * z + sn * x, t * z * z + cs
-    elif jtype == PRISMATIC:
-        tx, ty, tz = value * axis[f, 0], value * axis[f, 1], value * axis[f, 2]
-    # L = O @ [M | t]
-    l00 = origin[f, 0, 0] * m00 + origin[f, 0, 1] * m10 + origin[f, 0, 2] * m20
-    l01 = origin[f, 0, 0] * m01 + origin[f, 0, 1] * m11 + origin[f, 0, 2] * m21
-    l02 = origin[f, 0, 0] * m02 + origin[f, 0, 1] * m12 + origin[f, 0, 2] * m22
-    l03 = origin[f, 0, 0] * tx + origin[f, 0, 1] * ty + origin[f, 0, 2] * tz + origin[f, 0, 3]
-    l10 = origin[f, 1, 0] * m00 + origin[f, 1, 1] * m10 + origin[f, 1, 2] * m20
-    l11 = origin[f, 1, 0] * m01 + origin[f, 1, 1] * m11 + origin[f, 1, 2] * m21
-    l12 = origin[f, 1, 0] * m02 + origin[f, 1, 1] * m12 + origin[f, 1, 2] * m22
-    l13 = origin[f, 1, 0] * tx + origin[f, 1, 1] * ty + origin[f, 1, 2] * tz + origin[f, 1, 3]
-    l20 = origin[f, 2, 0] * m00 + origin[f, 2, 1] * m10 + origin[f, 2, 2] * m20
-    l21 = origin[f, 2, 0] * m01 + origin[f, 2, 1] * m11 + origin[f, 2, 2] * m21
-    l22 = origin[f, 2, 0] * m02 + origin[f, 2, 1] * m12 + origin[f, 2, 2] * m22
-    l23 = origin[f, 2, 0] * tx + origin[f, 2, 1] * ty + origin[f, 2, 2] * tz + origin[f, 2, 3]
+    l00, l01, l02, l03, l10, l11, l12, l13, l20, l21, l22, l23 = joint_transform(
+        jtype, value, axis[f, 0], axis[f, 1], axis[f, 2],
+        origin[f, 0, 0], origin[f, 0, 1], origin[f, 0, 2], origin[f, 0, 3],
+        origin[f, 1, 0], origin[f, 1, 1], origin[f, 1, 2], origin[f, 1, 3],
+        origin[f, 2, 0], origin[f, 2, 1], origin[f, 2, 2], origin[f, 2, 3])
     for r in range(3):
         p0, p1, p2 = poses[pp, r, 0], poses[pp, r, 1], poses[pp, r, 2]
         poses[out, r, 0] = p0 * l00 + p1 * l10 + p2 * l20

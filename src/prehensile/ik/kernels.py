@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from prehensile.kinematics.kernels import FAST, PRISMATIC, REVOLUTE
+from prehensile.kinematics.kernels import FAST, FIXED, PRISMATIC, REVOLUTE, joint_column, joint_transform
 
 TRANSPOSE, PSEUDOINVERSE, DAMPED = 0, 1, 2
 # solver outcomes
@@ -32,35 +32,19 @@ def chain_pose_jacobian(q, T_world_root, table, var_of_q, T_tip_tcp, frames, pos
     P = table.shape[0]
     for i in range(P):
         jtype = int(table[i, 1])
-        o00, o01, o02, o03 = table[i, 8], table[i, 9], table[i, 10], table[i, 11]
-        o10, o11, o12, o13 = table[i, 12], table[i, 13], table[i, 14], table[i, 15]
-        o20, o21, o22, o23 = table[i, 16], table[i, 17], table[i, 18], table[i, 19]
-        if jtype == REVOLUTE:
-            value = table[i, 3] * q[int(table[i, 2])] + table[i, 4]
-            x, y, z = table[i, 5], table[i, 6], table[i, 7]
-            c, s = np.cos(value), np.sin(value)
-            t = 1.0 - c
-            m00, m01, m02 = t * x * x + c, t * x * y - s * z, t * x * z + s * y
-            m10, m11, m12 = t * x * y + s * z, t * y * y + c, t * y * z - s * x
-            m20, m21, m22 = t * x * z - s * y, t * y * z + s * x, t * z * z + c
-            o00, o01, o02 = o00 * m00 + o01 * m10 + o02 * m20, o00 * m01 + o01 * m11 + o02 * m21, o00 * m02 + o01 * m12 + o02 * m22
-            o10, o11, o12 = o10 * m00 + o11 * m10 + o12 * m20, o10 * m01 + o11 * m11 + o12 * m21, o10 * m02 + o11 * m12 + o12 * m22
-            o20, o21, o22 = o20 * m00 + o21 * m10 + o22 * m20, o20 * m01 + o21 * m11 + o22 * m21, o20 * m02 + o21 * m12 + o22 * m22
-        elif jtype == PRISMATIC:
-            value = table[i, 3] * q[int(table[i, 2])] + table[i, 4]
-            x, y, z = table[i, 5], table[i, 6], table[i, 7]
-            o03 += value * (o00 * x + o01 * y + o02 * z)
-            o13 += value * (o10 * x + o11 * y + o12 * z)
-            o23 += value * (o20 * x + o21 * y + o22 * z)
+        value = table[i, 3] * q[int(table[i, 2])] + table[i, 4] if jtype != FIXED else 0.0
+        l00, l01, l02, l03, l10, l11, l12, l13, l20, l21, l22, l23 = joint_transform(
+            jtype, value, table[i, 5], table[i, 6], table[i, 7], table[i, 8], table[i, 9], table[i, 10], table[i, 11],
+            table[i, 12], table[i, 13], table[i, 14], table[i, 15], table[i, 16], table[i, 17], table[i, 18], table[i, 19])
         for r in range(3):
             if i == 0:
                 b0, b1, b2, b3 = T_world_root[r, 0], T_world_root[r, 1], T_world_root[r, 2], T_world_root[r, 3]
             else:
                 b0, b1, b2, b3 = frames[i - 1, r, 0], frames[i - 1, r, 1], frames[i - 1, r, 2], frames[i - 1, r, 3]
-            frames[i, r, 0] = b0 * o00 + b1 * o10 + b2 * o20
-            frames[i, r, 1] = b0 * o01 + b1 * o11 + b2 * o21
-            frames[i, r, 2] = b0 * o02 + b1 * o12 + b2 * o22
-            frames[i, r, 3] = b0 * o03 + b1 * o13 + b2 * o23 + b3
+            frames[i, r, 0] = b0 * l00 + b1 * l10 + b2 * l20
+            frames[i, r, 1] = b0 * l01 + b1 * l11 + b2 * l21
+            frames[i, r, 2] = b0 * l02 + b1 * l12 + b2 * l22
+            frames[i, r, 3] = b0 * l03 + b1 * l13 + b2 * l23 + b3
     for r in range(3):
         for c in range(4):
             pose[r, c] = (frames[P - 1, r, 0] * T_tip_tcp[0, c] + frames[P - 1, r, 1] * T_tip_tcp[1, c]
@@ -76,22 +60,12 @@ def chain_pose_jacobian(q, T_world_root, table, var_of_q, T_tip_tcp, frames, pos
         c = var_of_q[int(table[i, 2])]
         if c < 0:
             continue
-        m, ax, ay, az = table[i, 3], table[i, 5], table[i, 6], table[i, 7]
-        wx = m * (frames[i, 0, 0] * ax + frames[i, 0, 1] * ay + frames[i, 0, 2] * az)
-        wy = m * (frames[i, 1, 0] * ax + frames[i, 1, 1] * ay + frames[i, 1, 2] * az)
-        wz = m * (frames[i, 2, 0] * ax + frames[i, 2, 1] * ay + frames[i, 2, 2] * az)
-        if jtype == REVOLUTE:
-            dx, dy, dz = px - frames[i, 0, 3], py - frames[i, 1, 3], pz - frames[i, 2, 3]
-            jac[0, c] += wy * dz - wz * dy
-            jac[1, c] += wz * dx - wx * dz
-            jac[2, c] += wx * dy - wy * dx
-            jac[3, c] += wx
-            jac[4, c] += wy
-            jac[5, c] += wz
-        else:
-            jac[0, c] += wx
-            jac[1, c] += wy
-            jac[2, c] += wz
+        col = joint_column(jtype, table[i, 3], table[i, 5], table[i, 6], table[i, 7],
+                           frames[i, 0, 0], frames[i, 0, 1], frames[i, 0, 2], frames[i, 1, 0], frames[i, 1, 1],
+                           frames[i, 1, 2], frames[i, 2, 0], frames[i, 2, 1], frames[i, 2, 2],
+                           px - frames[i, 0, 3], py - frames[i, 1, 3], pz - frames[i, 2, 3])
+        for k in range(6):
+            jac[k, c] += col[k]
 
 
 @njit(cache=True, fastmath=FAST)

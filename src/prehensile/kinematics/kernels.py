@@ -4,6 +4,11 @@ They read the model's packed ``joint_table`` (L, 20) (see
 :attr:`prehensile.model.RobotModel.joint_table`) and write poses in place into preallocated
 float64 arrays (L, 4, 4). Columns of the table: 0 parent, 1 joint type, 2 q index,
 3 multiplier, 4 offset, 5-7 axis, 8-19 the top three rows of the joint origin.
+
+The joint math, :func:`joint_transform` and :func:`joint_column`, is also inlined into the IK
+(:mod:`prehensile.ik.kernels`) and sphere-collision kernels. It takes and returns scalars:
+arrays passed into an inlined function cost reference counting in every loop iteration.
+numba's cache does not notice edits to it from those modules: delete their ``__pycache__``.
 """
 
 from __future__ import annotations
@@ -17,6 +22,31 @@ FIXED, REVOLUTE, PRISMATIC = 0, 1, 2
 FAST = {"nsz", "arcp", "contract", "afn", "reassoc"}
 
 
+@njit(cache=True, inline="always")
+def joint_transform(jtype, value, x, y, z, o00, o01, o02, o03, o10, o11, o12, o13, o20, o21, o22, o23):
+    """Top three rows of ``origin @ motion``, a link's pose in its parent link's frame.
+
+    ``origin`` (3, 4) comes as its 12 entries o00 ... o23 (row-major, m) and goes out the
+    same way, so that the callers keep everything in registers. The motion is a rotation by
+    ``value`` (rad) about the unit axis (x, y, z) (Rodrigues) for a REVOLUTE joint, a
+    translation by ``value`` (m) along it for a PRISMATIC one, none for a FIXED one.
+    """
+    if jtype == REVOLUTE:
+        c, s = np.cos(value), np.sin(value)
+        t = 1.0 - c
+        m00, m01, m02 = t * x * x + c, t * x * y - s * z, t * x * z + s * y
+        m10, m11, m12 = t * x * y + s * z, t * y * y + c, t * y * z - s * x
+        m20, m21, m22 = t * x * z - s * y, t * y * z + s * x, t * z * z + c
+        o00, o01, o02 = o00 * m00 + o01 * m10 + o02 * m20, o00 * m01 + o01 * m11 + o02 * m21, o00 * m02 + o01 * m12 + o02 * m22
+        o10, o11, o12 = o10 * m00 + o11 * m10 + o12 * m20, o10 * m01 + o11 * m11 + o12 * m21, o10 * m02 + o11 * m12 + o12 * m22
+        o20, o21, o22 = o20 * m00 + o21 * m10 + o22 * m20, o20 * m01 + o21 * m11 + o22 * m21, o20 * m02 + o21 * m12 + o22 * m22
+    elif jtype == PRISMATIC:
+        o03 += value * (o00 * x + o01 * y + o02 * z)
+        o13 += value * (o10 * x + o11 * y + o12 * z)
+        o23 += value * (o20 * x + o21 * y + o22 * z)
+    return o00, o01, o02, o03, o10, o11, o12, o13, o20, o21, o22, o23
+
+
 @njit(cache=True, fastmath=FAST)
 def fk_into(q, T_world_base, table, out):
     """Poses of all links for one configuration q (dof,) into out (L, 4, 4).
@@ -27,34 +57,18 @@ def fk_into(q, T_world_base, table, out):
         if not np.isfinite(q[k]):
             return False
     for i in range(table.shape[0]):
-        parent, jtype, qi = int(table[i, 0]), int(table[i, 1]), int(table[i, 2])
-        o00, o01, o02, o03 = table[i, 8], table[i, 9], table[i, 10], table[i, 11]
-        o10, o11, o12, o13 = table[i, 12], table[i, 13], table[i, 14], table[i, 15]
-        o20, o21, o22, o23 = table[i, 16], table[i, 17], table[i, 18], table[i, 19]
-        if jtype == REVOLUTE:
-            value = table[i, 3] * q[qi] + table[i, 4]
-            x, y, z = table[i, 5], table[i, 6], table[i, 7]
-            c, s = np.cos(value), np.sin(value)
-            t = 1.0 - c
-            m00, m01, m02 = t * x * x + c, t * x * y - s * z, t * x * z + s * y
-            m10, m11, m12 = t * x * y + s * z, t * y * y + c, t * y * z - s * x
-            m20, m21, m22 = t * x * z - s * y, t * y * z + s * x, t * z * z + c
-            o00, o01, o02 = o00 * m00 + o01 * m10 + o02 * m20, o00 * m01 + o01 * m11 + o02 * m21, o00 * m02 + o01 * m12 + o02 * m22
-            o10, o11, o12 = o10 * m00 + o11 * m10 + o12 * m20, o10 * m01 + o11 * m11 + o12 * m21, o10 * m02 + o11 * m12 + o12 * m22
-            o20, o21, o22 = o20 * m00 + o21 * m10 + o22 * m20, o20 * m01 + o21 * m11 + o22 * m21, o20 * m02 + o21 * m12 + o22 * m22
-        elif jtype == PRISMATIC:
-            value = table[i, 3] * q[qi] + table[i, 4]
-            x, y, z = table[i, 5], table[i, 6], table[i, 7]
-            o03 += value * (o00 * x + o01 * y + o02 * z)
-            o13 += value * (o10 * x + o11 * y + o12 * z)
-            o23 += value * (o20 * x + o21 * y + o22 * z)
+        parent, jtype = int(table[i, 0]), int(table[i, 1])
+        value = table[i, 3] * q[int(table[i, 2])] + table[i, 4] if jtype != FIXED else 0.0
+        l00, l01, l02, l03, l10, l11, l12, l13, l20, l21, l22, l23 = joint_transform(
+            jtype, value, table[i, 5], table[i, 6], table[i, 7], table[i, 8], table[i, 9], table[i, 10], table[i, 11],
+            table[i, 12], table[i, 13], table[i, 14], table[i, 15], table[i, 16], table[i, 17], table[i, 18], table[i, 19])
         P = T_world_base if parent < 0 else out[parent]
         for r in range(3):
             b0, b1, b2 = P[r, 0], P[r, 1], P[r, 2]
-            out[i, r, 0] = b0 * o00 + b1 * o10 + b2 * o20
-            out[i, r, 1] = b0 * o01 + b1 * o11 + b2 * o21
-            out[i, r, 2] = b0 * o02 + b1 * o12 + b2 * o22
-            out[i, r, 3] = b0 * o03 + b1 * o13 + b2 * o23 + P[r, 3]
+            out[i, r, 0] = b0 * l00 + b1 * l10 + b2 * l20
+            out[i, r, 1] = b0 * l01 + b1 * l11 + b2 * l21
+            out[i, r, 2] = b0 * l02 + b1 * l12 + b2 * l22
+            out[i, r, 3] = b0 * l03 + b1 * l13 + b2 * l23 + P[r, 3]
         out[i, 3, 0] = 0.0
         out[i, 3, 1] = 0.0
         out[i, 3, 2] = 0.0
@@ -70,6 +84,23 @@ def fk_batch_into(q, T_world_base, table, out):
         if not fk_into(q[b], T_world_base, table, out[b]):
             return b
     return -1
+
+
+@njit(cache=True, inline="always")
+def joint_column(jtype, m, x, y, z, r00, r01, r02, r10, r11, r12, r20, r21, r22, dx, dy, dz):
+    """A joint's world-axes Jacobian column for a point: 6 scalars, the point's velocity (m/s)
+    over the angular velocity (rad/s) per unit joint velocity.
+
+    The joint's world axis is w = m R (x, y, z), R (3, 3) the world rotation of the joint's
+    link (entries r00 ... r22) and m the mimic multiplier; a REVOLUTE joint gives (w x d, w)
+    with d (m) from the link's origin to the point, a PRISMATIC one (w, 0).
+    """
+    wx = m * (r00 * x + r01 * y + r02 * z)
+    wy = m * (r10 * x + r11 * y + r12 * z)
+    wz = m * (r20 * x + r21 * y + r22 * z)
+    if jtype == REVOLUTE:
+        return wy * dz - wz * dy, wz * dx - wx * dz, wx * dy - wy * dx, wx, wy, wz
+    return wx, wy, wz, 0.0, 0.0, 0.0
 
 
 @njit(cache=True, fastmath=FAST)
@@ -89,23 +120,12 @@ def jacobian_into(poses, link, point, table, out):
         jtype = int(table[j, 1])
         if jtype != FIXED:
             Tj = poses[j]
-            m, ax, ay, az = table[j, 3], table[j, 5], table[j, 6], table[j, 7]
-            wx = m * (Tj[0, 0] * ax + Tj[0, 1] * ay + Tj[0, 2] * az)
-            wy = m * (Tj[1, 0] * ax + Tj[1, 1] * ay + Tj[1, 2] * az)
-            wz = m * (Tj[2, 0] * ax + Tj[2, 1] * ay + Tj[2, 2] * az)
+            col = joint_column(jtype, table[j, 3], table[j, 5], table[j, 6], table[j, 7],
+                               Tj[0, 0], Tj[0, 1], Tj[0, 2], Tj[1, 0], Tj[1, 1], Tj[1, 2], Tj[2, 0], Tj[2, 1], Tj[2, 2],
+                               px - Tj[0, 3], py - Tj[1, 3], pz - Tj[2, 3])
             c = int(table[j, 2])
-            if jtype == REVOLUTE:
-                dx, dy, dz = px - Tj[0, 3], py - Tj[1, 3], pz - Tj[2, 3]
-                out[0, c] += wy * dz - wz * dy
-                out[1, c] += wz * dx - wx * dz
-                out[2, c] += wx * dy - wy * dx
-                out[3, c] += wx
-                out[4, c] += wy
-                out[5, c] += wz
-            else:
-                out[0, c] += wx
-                out[1, c] += wy
-                out[2, c] += wz
+            for k in range(6):
+                out[k, c] += col[k]
         j = int(table[j, 0])
 
 
