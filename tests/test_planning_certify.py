@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 import trimesh
@@ -10,7 +12,9 @@ from prehensile.collision.spheres import generate_sphere_model
 from prehensile.collision.world import Obstacle
 from prehensile.model.builder import JointSpec, LinkSpec, build_model
 from prehensile.model.geometry import Box, Capsule, Geometry, Mesh
+from prehensile.kinematics import forward_kinematics
 from prehensile.planning import AttachedObject, PlanningContext, certify_path
+from prehensile.planning.certify import _cover_distance
 from prehensile.spatial import make_pose
 
 ALONG_X = np.array([[0.0, 0, 1], [0, 1, 0], [-1, 0, 0]])
@@ -104,3 +108,47 @@ def test_attached_object_is_certified(arm):
     rod = AttachedObject("rod", "l2", Box((0.4, 0.03, 0.03)), make_pose(position=[0.5, 0.0, 0.0]))
     ctx = PlanningContext(model, [box], spheres=spheres, attached=[rod])
     assert not certify_path(ctx, path).ok
+
+
+def _u_and_box_world() -> list[Obstacle]:
+    u = trimesh.util.concatenate([trimesh.creation.box((0.3, 0.04, 0.3), trimesh.transformations.translation_matrix(
+        [0.0, y, 0.0])) for y in (0.13, -0.13)])
+    return [Obstacle("u", Mesh.from_arrays(u.vertices, u.faces), make_pose(position=[0.8, 0.0, 0.1])),
+            Obstacle("box", Box((0.1, 0.1, 0.3)), make_pose(position=[0.0, 0.7, 0.1]))]
+
+
+def test_covering_ball_distances_are_lower_bounds(arm):
+    """The certifier's bound from covering balls never exceeds coal's exact distance, and is close."""
+    model, spheres = arm
+    world = _u_and_box_world()
+    ctx = PlanningContext(model, world, spheres=spheres)
+    cover = ctx.certifier._cover
+    rng = np.random.default_rng(2)
+    gaps = []
+    for q in rng.uniform(model.lower, model.upper, size=(40, model.dof)):
+        poses = forward_kinematics(model, q)
+        for pair in (p for p in ctx.exact.closest_points(q) if p.distance > 0):  # bounds, not depths
+            link, o = model.link_index(pair.link), [w.name for w in world].index(pair.other)
+            bound = _cover_distance(poses, link, -1, o, *cover)
+            assert bound <= pair.distance + 1e-9
+            gaps.append(pair.distance - bound)
+    assert np.median(gaps) < 0.05  # balls around 4 cm capsules, mesh obstacle covered by 32 balls
+
+
+def test_covering_balls_keep_every_verdict(arm):
+    """Certification with covering-ball bounds agrees with the coal-only certification."""
+    model, spheres = arm
+    world = _u_and_box_world()
+    covered = PlanningContext(model, world, spheres=spheres)
+    plain = PlanningContext(model, world, spheres=dataclasses.replace(spheres, covering=False))
+    assert covered.cover_model is not None and plain.cover_model is None
+    rng = np.random.default_rng(1)
+    outcomes = set()
+    for _ in range(24):
+        path = np.vstack([[-1.5, 0.0], rng.uniform([-3.0, -2.5], [3.0, 2.5], size=(2, 2))])
+        if not plain.exact.is_free(path).all():
+            continue
+        fast, slow = certify_path(covered, path), certify_path(plain, path)
+        assert fast.ok == slow.ok, path
+        outcomes.add(fast.ok)
+    assert outcomes == {True, False}

@@ -7,8 +7,9 @@ import time
 import numpy as np
 import pytest
 
-from prehensile.collision.spheres import generate_sphere_model
+from prehensile.collision.spheres import SphereModel, generate_sphere_model
 from prehensile.collision.world import Obstacle
+from prehensile.errors import PrehensileError
 from prehensile.kinematics.forward import forward_kinematics
 from prehensile.model.builder import JointSpec, LinkSpec, build_model
 from prehensile.model.geometry import Box, Capsule, Geometry, Sphere
@@ -169,6 +170,32 @@ def test_goal_the_balls_reject_is_reached_by_a_certified_escape(arm):
     inside = _box("inside", [0.92, 0.0, 0.1], [0.05, 0.05, 0.05])  # exactly colliding: no escape
     assert rrt_connect(PlanningContext(model, [inside], spheres=spheres), start, goal, FAST).status \
         is PlanStatus.INVALID_GOAL
+
+
+def test_path_failing_certification_is_planned_again_on_the_cover(arm):
+    """Thin balls slip through a slot narrower than the links; their path fails the exact
+    certification, and covering balls on the links that collided make the planner go around
+    with the arm folded."""
+    model, spheres = arm
+    slot = [_box(name, [0.8, 0.0, 0.1 + side * 0.085], [0.6, 0.3, 0.1]) for name, side in (("top", 1), ("bottom", -1))]
+    thin = SphereModel(spheres.link_names, spheres.sphere_link, spheres.centers, 0.25 * spheres.radii)
+    start, goal = np.array([-1.2, 0.0, 0.0]), np.array([1.2, 0.0, 0.0])
+    alone = PlanningContext(model, slot, spheres=thin)
+    assert alone.refined({"l2"}) is None and alone.check_motion(start, goal)
+    assert rrt_connect(alone, start, goal, FAST).status is PlanStatus.CERTIFICATION_FAILED
+    ctx = PlanningContext(model, slot, spheres=thin, cover=spheres)
+    covered = ctx.refined({"l1", "l2", "l3"})
+    assert covered.certifier is ctx.certifier and not covered.check_motion(start, goal)
+    assert ctx.refined({"l3", "l2", "l1"}) is covered
+    result = rrt_connect(ctx, start, goal, FAST, np.random.default_rng(0))
+    _check_result(ctx, result, start, goal)
+    assert result.info["attempts"] >= 2 and set(result.info["refined"]) <= {"l1", "l2", "l3"}
+    assert result.info["refined"]
+    mixed = ctx.refined({"l2"}).sphere_model
+    for link, balls in (("l1", thin), ("l2", spheres), ("l3", thin)):
+        np.testing.assert_array_equal(mixed.link_spheres(link)[1], balls.link_spheres(link)[1])
+    with pytest.raises(PrehensileError, match="covering"):
+        PlanningContext(model, slot, spheres=thin, cover=thin)
 
 
 def test_context_checks_shapes_and_limits(arm):

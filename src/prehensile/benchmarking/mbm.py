@@ -81,14 +81,20 @@ class MBMSettings:
                 raise PrehensileError(f"{name}: must be positive (m), got {getattr(self, name)}")
 
 
-def benchmark_spheres(model: RobotModel, spherized_urdf: str | Path | None, pad: bool = True) -> SphereModel:
-    """The robot's sphere model: generated from the meshes without ``spherized_urdf``, else its
-    balls, padded to cover the meshes if ``pad`` (unpadded balls can miss mesh contacts; the
-    exact certification then rejects such paths)."""
+def benchmark_spheres(model: RobotModel, spherized_urdf: str | Path | None,
+                      pad: bool = False) -> tuple[SphereModel, SphereModel | None]:
+    """(planning balls, covering balls or None) of the robot.
+
+    Without ``spherized_urdf``: balls generated from the meshes (they cover them). Else the
+    file's balls as they are, which can miss mesh contacts (the exact certification rejects
+    such paths; the planner then plans again with the covering balls, the same balls padded to
+    cover the meshes, on the links that collided), or with ``pad`` the padded balls alone.
+    """
     if spherized_urdf is None:
-        return generate_sphere_model(model)
+        return generate_sphere_model(model), None
     balls = spheres_from_urdf(model, spherized_urdf)
-    return pad_sphere_model(balls, model) if pad else balls
+    padded = pad_sphere_model(balls, model)
+    return (padded, None) if pad else (balls, padded)
 
 
 def planned_joints(model: RobotModel, problem: MBMProblem) -> list[str]:
@@ -142,7 +148,8 @@ def path_collides_exactly(space, exact, path: np.ndarray, resolution: float) -> 
 class _Problem:
     """One problem prepared for planning: context, start and goal."""
 
-    def __init__(self, model: RobotModel, spheres: SphereModel, problem: MBMProblem, settings: MBMSettings) -> None:
+    def __init__(self, model: RobotModel, spheres: tuple[SphereModel, SphereModel | None], problem: MBMProblem,
+                 settings: MBMSettings) -> None:
         from prehensile.planning import PlanningContext
 
         self.problem = problem
@@ -150,8 +157,9 @@ class _Problem:
         self.q_goal = problem.request.goal_configuration(model)
         T_world_base = problem.scene.robots[0].T_world_base if problem.scene.robots else None
         self.ctx = PlanningContext(model, problem.scene.collision_obstacles(), joints=planned_joints(model, problem),
-                                   q_ref=self.q_start, T_world_base=T_world_base, spheres=spheres,
-                                   resolution=settings.resolution, certify_resolution=settings.certify_resolution)
+                                   q_ref=self.q_start, T_world_base=T_world_base, spheres=spheres[0],
+                                   cover=spheres[1], resolution=settings.resolution,
+                                   certify_resolution=settings.certify_resolution)
         # the exact certifier is built on first use: build it here, outside the timed planner call
         _ = self.ctx.certifier
 
@@ -250,14 +258,15 @@ def _ratios(runs: Sequence[dict], ours: dict, ompl: dict) -> dict:
     }
 
 
-def run_mbm(problems_path: str | Path, model: RobotModel, spheres: SphereModel, settings: MBMSettings = MBMSettings(),
+def run_mbm(problems_path: str | Path, model: RobotModel, spheres: tuple[SphereModel, SphereModel | None],
+            settings: MBMSettings = MBMSettings(),
             progress: Callable[[int, int, dict], None] | None = None) -> dict:
     """Run the benchmark; returns the JSON-ready report.
 
     Args:
         problems_path: folder or archive of MoveIt scene/request YAML pairs.
         model: the robot (with its SRDF for groups and disabled collision pairs).
-        spheres: the robot's sphere model (see :func:`benchmark_spheres`).
+        spheres: planning balls and covering balls (see :func:`benchmark_spheres`).
         settings: see :class:`MBMSettings`.
         progress: called after each problem with (done, total, per-problem record).
 
@@ -283,7 +292,8 @@ def run_mbm(problems_path: str | Path, model: RobotModel, spheres: SphereModel, 
         "benchmark": "mbm", "problems": str(problems_path), **ours, "ompl": ompl,
         "ratios": _ratios(runs, ours, ompl) if ompl else None,
         "settings": asdict(settings),
-        "robot": {"name": model.name, "source": model.source, "spheres": spheres.n_spheres,
+        "robot": {"name": model.name, "source": model.source, "spheres": spheres[0].n_spheres,
+                  "cover_spheres": None if spheres[1] is None else spheres[1].n_spheres,
                   "joints": planned_joints(model, problems[0])},
         "machine": machine(), "versions": versions(), "runs": runs,
     }
@@ -296,7 +306,8 @@ def run_mbm(problems_path: str | Path, model: RobotModel, spheres: SphereModel, 
     return report
 
 
-def _warm_up(model: RobotModel, spheres: SphereModel, problem: MBMProblem, settings: MBMSettings) -> None:
+def _warm_up(model: RobotModel, spheres: tuple[SphereModel, SphereModel | None], problem: MBMProblem,
+             settings: MBMSettings) -> None:
     """Compile (or load from numba's cache) every kernel on one problem before timing."""
     from prehensile.planning import RRTConnectSettings, rrt_connect
 

@@ -19,10 +19,11 @@ from prehensile.errors import PrehensileError
 def bench_mbm(
     problems: Path = typer.Argument(..., help="Folder or .tar.bz2 of MoveIt sceneNNNN.yaml / requestNNNN.yaml pairs."),
     robot: str = typer.Option(..., "--robot", help="Robot URDF (or a bundled robot name)."),
-    spheres: Optional[Path] = typer.Option(None, "--spheres", help="Spherized URDF; its balls are padded to cover "
-                                           "the meshes (default: spheres generated from the meshes)."),
-    pad: bool = typer.Option(True, "--pad/--no-pad", help="Pad the spherized URDF's balls to cover the meshes; "
-                             "--no-pad plans with them as they are (not covering; exact certification decides)."),
+    spheres: Optional[Path] = typer.Option(None, "--spheres", help="Spherized URDF whose balls to plan with "
+                                           "(default: balls generated from the meshes)."),
+    pad: bool = typer.Option(False, "--pad/--no-pad", help="--no-pad: plan on the spherized URDF's balls as they "
+                             "are and, when a path fails the exact certification, again with the balls of the "
+                             "links that collided padded to cover the meshes; --pad: plan on padded balls only."),
     srdf: Optional[Path] = typer.Option(None, "--srdf", help="SRDF with the planning groups and disabled collision "
                                         "pairs (default: <urdf stem>.srdf next to the URDF if present)."),
     planner: str = typer.Option("rrt_connect", "--planner", help="Our planner."),
@@ -55,11 +56,11 @@ def bench_mbm(
         report = run_mbm(problems, model, sphere_model, settings, progress)
     options = {"--robot": robot, "--srdf": srdf, "--spheres": spheres, "--planner": planner, "--budget": budget,
                "--seed": seed, "--limit": limit, "--json": json_out}
-    words = ["prehensile", "bench", "mbm", str(problems)] + ["--compare-ompl"] * compare_ompl + ["--no-pad"] * (not pad)
+    words = ["prehensile", "bench", "mbm", str(problems)] + ["--compare-ompl"] * compare_ompl + ["--pad"] * pad
     report["command"] = shlex.join(words + [str(w) for k, v in options.items() if v is not None for w in (k, v)])
     report["robot"].update(urdf=str(robot), srdf=None if srdf is None else str(srdf),
                            spherized_urdf=None if spheres is None else str(spheres),
-                           sphere_model="generated" if spheres is None else "padded" if pad else "unpadded")
+                           sphere_model="generated" if spheres is None else "padded" if pad else "as given, padded where certification fails")
     print_report(report)
     if json_out is not None:
         atomic_write_json(json_out, report)

@@ -31,12 +31,15 @@ class SphereModel:
         sphere_link: (S,) int64 link index of each ball.
         centers: (S, 3) ball centres in the link frame (m).
         radii: (S,) radii (m).
+        covering: the balls of every link cover its collision geometry (generated and padded
+            models; a spherized URDF's balls are not known to).
     """
 
     link_names: tuple[str, ...]
     sphere_link: np.ndarray
     centers: np.ndarray
     radii: np.ndarray
+    covering: bool = False
 
     def __post_init__(self) -> None:
         link = np.ascontiguousarray(self.sphere_link, dtype=np.int64)
@@ -89,20 +92,32 @@ class SphereModel:
     def arrays(self) -> dict[str, np.ndarray]:
         """The arrays for storage (see :func:`sphere_model_from_arrays`)."""
         return {"link_names": np.array(self.link_names), "sphere_link": self.sphere_link,
-                "centers": self.centers, "radii": self.radii}
+                "centers": self.centers, "radii": self.radii, "covering": np.array(self.covering)}
+
+
+def replace_link_balls(spheres: SphereModel, other: SphereModel, links: set[str]) -> SphereModel:
+    """``spheres`` with the balls of ``links`` (names) taken from ``other`` (same link list)."""
+    if tuple(spheres.link_names) != tuple(other.link_names):
+        raise ModelError("replace_link_balls: the sphere models belong to different link lists")
+    take = np.isin(np.array(spheres.link_names), list(links))
+    keep, swap = ~take[spheres.sphere_link], take[other.sphere_link]
+    return SphereModel(spheres.link_names, np.concatenate([spheres.sphere_link[keep], other.sphere_link[swap]]),
+                       np.vstack([spheres.centers[keep], other.centers[swap]]),
+                       np.concatenate([spheres.radii[keep], other.radii[swap]]),
+                       spheres.covering and other.covering)
 
 
 def sphere_model_from_arrays(arrays) -> SphereModel:
     """Inverse of :meth:`SphereModel.arrays` (accepts an ``np.load`` result)."""
     return SphereModel(tuple(str(s) for s in arrays["link_names"]), arrays["sphere_link"],
-                       arrays["centers"], arrays["radii"])
+                       arrays["centers"], arrays["radii"], bool(arrays["covering"]))
 
 
-def _from_lists(model: RobotModel, per_link: list[tuple[np.ndarray, np.ndarray]]) -> SphereModel:
+def _from_lists(model: RobotModel, per_link: list[tuple[np.ndarray, np.ndarray]], covering: bool) -> SphereModel:
     links = np.concatenate([np.full(len(r), i, dtype=np.int64) for i, (_, r) in enumerate(per_link)] or [np.zeros(0, np.int64)])
     centers = np.concatenate([c for c, _ in per_link] or [np.zeros((0, 3))])
     radii = np.concatenate([r for _, r in per_link] or [np.zeros(0)])
-    return SphereModel(model.link_names, links, centers, radii)
+    return SphereModel(model.link_names, links, centers, radii, covering)
 
 
 def generate_sphere_model(
@@ -128,7 +143,7 @@ def generate_sphere_model(
 
     def build() -> SphereModel:
         return _from_lists(model, [cover_geometries(geoms, n_spheres, max_radius, max_edge)
-                                   for geoms in model.collisions])
+                                   for geoms in model.collisions], covering=True)
 
     return sphere_cache.cached(model, params, build) if cache else build()
 
@@ -166,7 +181,7 @@ def spheres_from_urdf(model: RobotModel, path: str | Path) -> SphereModel:
         per_link.append((np.concatenate(centers), np.concatenate(radii)))
     if matched == 0:
         raise ModelError(f"{path}: none of its links is a link of robot '{model.name}'")
-    return _from_lists(model, per_link)
+    return _from_lists(model, per_link, covering=False)
 
 
 def pad_sphere_model(
@@ -215,6 +230,6 @@ def pad_sphere_model(
                     c, r = cover_primitive(g)
                     centers, radii = np.vstack([centers, c]), np.concatenate([radii, r])
             per_link.append((centers, radii))
-        return _from_lists(model, per_link)
+        return _from_lists(model, per_link, covering=True)
 
     return sphere_cache.cached(model, params, build) if cache else build()

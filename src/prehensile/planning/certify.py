@@ -19,10 +19,14 @@ measured a few times per path.
 
 Distances are lower bounds, each from the cheapest source that suffices: enclosing balls of
 the parts against the obstacles' bounding boxes (or against each other) while they are
-farther apart than 5 cm; else coal on convex bounds (the convex hull of a mesh, the
-primitive itself), which contain the geometry; and only where a hull overlaps, the exact mesh
-(``coal.collide``, then the exact distance for the bubble). A collision is only ever declared
-by the exact geometry. Meshes are surfaces, as in :class:`~prehensile.collision.exact.ExactChecker`.
+farther apart than 5 cm; then, with a covering sphere model (every triangle of a link inside
+one of its balls, :attr:`~prehensile.collision.spheres.SphereModel.covering`), the distance
+of the link's balls to the obstacle's shape (or to the other link's balls) while they do not
+touch; else coal on convex bounds (the convex hull of a mesh, the primitive itself),
+which contain the geometry; and only where a hull overlaps, the exact mesh
+(``coal.collide``, then the exact distance for the bubble). Every bound comes from shapes that
+contain the geometry, and a collision is only ever declared by the exact geometry. Meshes are
+surfaces, as in :class:`~prehensile.collision.exact.ExactChecker`.
 """
 
 from __future__ import annotations
@@ -35,7 +39,10 @@ import coal
 import numpy as np
 from numba import njit
 
+from prehensile.collision import sphere_kernels as SK
 from prehensile.collision.exact import coal_geometry
+from prehensile.collision.sphere_checker import obstacle_arrays
+from prehensile.collision.spheres import SphereModel
 from prehensile.collision.world import Obstacle
 from prehensile.kinematics.kernels import fk_into
 from prehensile.model.geometry import Box, Capsule, Cylinder, Geometry, Mesh, Sphere
@@ -44,6 +51,7 @@ from prehensile.planning.context import PlanningContext, motion_weights
 
 _TOLERANCE = 1e-6  # m taken off every coal distance (GJK converges to about this)
 _FAR = 0.05  # m: pairs whose enclosing balls are this far apart are not measured exactly
+_COVER_NEAR = 0.0  # m: pairs whose covering balls are apart are not measured exactly
 
 
 @dataclass(frozen=True)
@@ -58,6 +66,8 @@ class CertifyReport:
         distance_queries: coal distance and collision queries.
         min_distance: smallest lower bound of the exact clearance seen (m); <= 0 on a collision.
         time_s: wall time (s).
+        colliding_links: the robot link(s) of the first colliding pair (two for a self
+            collision), empty if ok or if a waypoint left the limits.
     """
 
     ok: bool
@@ -66,6 +76,7 @@ class CertifyReport:
     distance_queries: int = 0
     min_distance: float = np.inf
     time_s: float = 0.0
+    colliding_links: tuple[str, ...] = ()
 
 
 def _enclosing_ball(geometry: Geometry) -> tuple[np.ndarray, float]:
@@ -128,10 +139,11 @@ class ExactCertifier:
         obstacles: shapes fixed in the world.
         T_world_base: (4, 4) pose of the robot root.
         acm: (L, L) allowed-collision matrix (True = pair not checked).
+        cover: balls covering every link's geometry (``covering``) for cheap lower bounds.
     """
 
     def __init__(self, model: RobotModel, obstacles: Sequence[Obstacle], T_world_base: np.ndarray,
-                 acm: np.ndarray) -> None:
+                 acm: np.ndarray, cover: SphereModel | None = None) -> None:
         self.model = model
         self.T_world_base = np.asarray(T_world_base, dtype=float)
         self._parts = []  # (link, T_link_geom, exact, convex bound, exact is convex)
@@ -171,6 +183,8 @@ class ExactCertifier:
         # resolution metric: how far any part can move per unit of each variable
         self._reach = np.max(motion_weights(model, centers, radii, np.column_stack(
             [np.arange(model.n_links), np.full(model.n_links, -1)])), axis=0)
+        self._cover = _cover_arrays(cover, model.n_links, obstacles)
+        self._near = _FAR if cover is None else _COVER_NEAR
         self._tf = [coal.Transform3s() for _ in self._parts]
         self._request = coal.DistanceRequest()
         self._collision_request = coal.CollisionRequest()
@@ -191,6 +205,11 @@ class ExactCertifier:
         if coal.collide(exact_a, Ta, exact_b, Tb, self._collision_request, coal.CollisionResult()) > 0:
             return -1.0, 2
         return max(coal.distance(exact_a, Ta, exact_b, Tb, self._request, coal.DistanceResult()) - _TOLERANCE, 0.0), 3
+
+    def _links_of(self, p: int) -> tuple[str, ...]:
+        """Names of the robot links in pair p."""
+        a, _, b = self._pairs[p]
+        return tuple(self.model.link_names[self._parts[k][0]] for k in (a, b) if k >= 0)
 
     def _place(self, poses: np.ndarray, parts) -> list:
         """coal transforms of ``parts`` with the link poses (L, 4, 4)."""
@@ -218,86 +237,139 @@ class ExactCertifier:
         walk = (path, arc, seg, np.append(delta @ self._reach, 0.0), np.full(count, -np.inf), np.zeros(count),
                 float(resolution), np.zeros(3), np.empty((self.model.n_links, 4, 4)), self.T_world_base,
                 self.model.joint_table, self._pair_a, self._pair_o, self._pair_b, self._part_link, self._ball_center,
-                self._ball_radius, self._boxes, np.empty(count, dtype=np.int64), np.empty(count), np.empty(count),
-                np.empty(self.model.dof))
-        safe, early, position, poses = walk[4], walk[5], walk[7], walk[8]
-        due, here, bound = walk[18], walk[19], walk[20]
-        checked, queries, lowest = 0, 0, np.inf
+                self._ball_radius, self._boxes, *self._cover, self._near, np.array([0.0, np.inf]),
+                np.empty(count, dtype=np.int64), np.empty(count), np.empty(count), np.empty(self.model.dof))
+        safe, early, position, poses, stats = walk[4], walk[5], walk[7], walk[8], walk[-5]
+        due, here, bound = walk[-4], walk[-3], walk[-2]
+        queries = 0
         while True:
             m = _next_due(*walk)
             if m < 0:
-                return CertifyReport(True, -1, checked, queries, lowest, time.perf_counter() - start)
-            checked += 1
+                return CertifyReport(True, -1, int(stats[0]), queries, float(stats[1]), time.perf_counter() - start)
             d = bound[:m].copy()
-            near = np.flatnonzero(d < _FAR)  # far pairs keep the ball bound; the near ones ask coal
-            if len(near):
-                close = due[near]
-                placed = self._place(poses, set(self._pair_a[close]) | (set(self._pair_b[close]) - {-1}))
-                for k in near:
-                    d[k], used_queries = self._lower_bound(int(due[k]), placed)
-                    queries += used_queries
-                    if d[k] < 0.0:
-                        i, t = int(position[0]), position[1]
-                        bad = i - 1 if (t == 0.0 and i > 0) else i
-                        return CertifyReport(False, bad, checked, queries, float(d[k]), time.perf_counter() - start)
-            lowest = min(lowest, float(d.min()))
+            near = np.flatnonzero(d < self._near)  # far pairs keep the ball bound; the near ones ask coal
+            close = due[near]
+            placed = self._place(poses, set(self._pair_a[close]) | (set(self._pair_b[close]) - {-1}))
+            for k in near:
+                d[k], used_queries = self._lower_bound(int(due[k]), placed)
+                queries += used_queries
+                if d[k] < 0.0:
+                    i, t = int(position[0]), position[1]
+                    bad = i - 1 if (t == 0.0 and i > 0) else i
+                    return CertifyReport(False, bad, int(stats[0]), queries, float(d[k]), time.perf_counter() - start,
+                                         self._links_of(int(due[k])))
+            stats[1] = min(stats[1], float(d.min()))
             safe[due[:m]], early[due[:m]] = here[:m] + d, 0.5 * d + 1e-12  # (rounding: reached exactly is due)
 
 
 @njit(cache=True)
 def _next_due(path, arc, seg, step, safe, early, res, position, poses, T_world_base, table, pair_a, pair_o, pair_b,
-              part_link, ball_center, ball_radius, boxes, due, here, bound, q):
-    """Walk to the next configuration on the path where some pair is due; returns how many
-    (-1 at the end of the path).
+              part_link, ball_center, ball_radius, boxes, lrange, ccenter, cradius, otype, opose, oparam, orange,
+              near, stats, due, here, bound, q):
+    """Walk to the next configuration on the path where some due pair is nearer than ``near``
+    (m); returns how many pairs are due there (-1 at the end of the path).
 
     A pair p is due once its arc (``arc[p, i] + t * seg[p, i]`` on segment i at t) reaches
     ``safe[p] - early[p]``. ``position`` = (segment, t, 1 if that configuration is done): the
     walk moves on to the nearest expiry of a pair, but at least ``res / step[i]`` and at most to
     the next waypoint. There it fills ``due[:m]``, ``here[:m]`` (their arcs), ``poses`` (link
     poses, via FK) and ``bound[:m]`` (lower bounds of their distances from enclosing balls:
-    part ball vs obstacle AABB, or part ball vs part ball).
+    part ball vs obstacle AABB, or part ball vs part ball; closer than ``_FAR``, the covering
+    balls' distance if that is larger, see :func:`_cover_distance`). Configurations where every
+    due pair is at least ``near`` apart renew those pairs' bubbles here and the walk goes on.
+    ``stats`` = (configurations measured, least bound seen) is updated.
     """
     n, count = path.shape[0], arc.shape[0]
     i, t = int(position[0]), position[1]
     while True:
-        if position[2] != 0.0:  # done here: move on
-            if i == n - 1:
-                return -1
-            t_next = t + res / step[i] if step[i] > 0.0 else np.inf
-            expire = np.inf
+        while True:
+            if position[2] != 0.0:  # done here: move on
+                if i == n - 1:
+                    return -1
+                t_next = t + res / step[i] if step[i] > 0.0 else np.inf
+                expire = np.inf
+                for p in range(count):
+                    if seg[p, i] > 0.0:
+                        expire = min(expire, (safe[p] - 1e-12 - arc[p, i]) / seg[p, i])
+                t_next = max(t_next, expire)
+                if t_next >= 1.0:
+                    i, t = i + 1, 0.0
+                else:
+                    t = t_next
+            position[0], position[1], position[2] = i, t, 1.0
+            m = 0
             for p in range(count):
-                if seg[p, i] > 0.0:
-                    expire = min(expire, (safe[p] - 1e-12 - arc[p, i]) / seg[p, i])
-            t_next = max(t_next, expire)
-            if t_next >= 1.0:
-                i, t = i + 1, 0.0
-            else:
-                t = t_next
-        position[0], position[1], position[2] = i, t, 1.0
-        m = 0
-        for p in range(count):
-            at = arc[p, i] + t * seg[p, i]
-            if at >= safe[p] - early[p]:
-                due[m], here[m] = p, at
-                m += 1
-        if m > 0:
-            break
-    for k in range(q.shape[0]):
-        q[k] = path[i, k] + t * (path[i + 1, k] - path[i, k]) if t > 0.0 else path[i, k]
-    fk_into(q, T_world_base, table, poses)
-    for k in range(m):
-        p = due[k]
-        a, o, b = pair_a[p], pair_o[p], pair_b[p]
-        gap = 0.0
-        for x in range(3):
-            ca = _place(poses[part_link[a]], ball_center[a], x)
-            if o >= 0:
-                e = max(boxes[o, x] - ca, ca - boxes[o, 3 + x], 0.0)
-            else:
-                e = ca - _place(poses[part_link[b]], ball_center[b], x)
-            gap += e * e
-        bound[k] = np.sqrt(gap) - ball_radius[a] - (ball_radius[b] if o < 0 else 0.0)
-    return m
+                at = arc[p, i] + t * seg[p, i]
+                if at >= safe[p] - early[p]:
+                    due[m], here[m] = p, at
+                    m += 1
+            if m > 0:
+                break
+        for k in range(q.shape[0]):
+            q[k] = path[i, k] + t * (path[i + 1, k] - path[i, k]) if t > 0.0 else path[i, k]
+        fk_into(q, T_world_base, table, poses)
+        for k in range(m):
+            p = due[k]
+            a, o, b = pair_a[p], pair_o[p], pair_b[p]
+            gap = 0.0
+            for x in range(3):
+                ca = _place(poses[part_link[a]], ball_center[a], x)
+                if o >= 0:
+                    e = max(boxes[o, x] - ca, ca - boxes[o, 3 + x], 0.0)
+                else:
+                    e = ca - _place(poses[part_link[b]], ball_center[b], x)
+                gap += e * e
+            bound[k] = np.sqrt(gap) - ball_radius[a] - (ball_radius[b] if o < 0 else 0.0)
+            if bound[k] < _FAR:
+                lb = part_link[b] if o < 0 else -1
+                bound[k] = max(bound[k], _cover_distance(poses, part_link[a], lb, o, lrange, ccenter, cradius, otype,
+                                                         opose, oparam, orange))
+        stats[0] += 1
+        for k in range(m):
+            if bound[k] < near:
+                return m
+        for k in range(m):  # every due pair is far: renew its bubble here (rounding: reached exactly is due)
+            safe[due[k]], early[due[k]] = here[k] + bound[k], 0.5 * bound[k] + 1e-12
+            stats[1] = min(stats[1], bound[k])
+
+
+@njit(cache=True)
+def _cover_distance(poses, la, lb, o, lrange, ccenter, cradius, otype, opose, oparam, orange):
+    """Lower bound (m) of the distance of link la's geometry to obstacle o (o >= 0), or to link
+    lb's geometry: the least distance between their covering balls (link balls ``lrange``
+    (L, 2) into ``ccenter`` (S, 3), ``cradius`` (S,); obstacle o's shapes ``orange`` (O, 2)
+    into the kernel arrays ``otype``, ``opose``, ``oparam``); -inf without covering balls."""
+    if lrange[la, 1] == lrange[la, 0] or (o < 0 and lrange[lb, 1] == lrange[lb, 0]):
+        return -np.inf
+    best = np.inf
+    for s in range(lrange[la, 0], lrange[la, 1]):
+        x, y, z = _place(poses[la], ccenter[s], 0), _place(poses[la], ccenter[s], 1), _place(poses[la], ccenter[s], 2)
+        if o >= 0:
+            for e in range(orange[o, 0], orange[o, 1]):
+                d2, grow = SK._core_distance2(otype, opose, oparam, e, x, y, z)
+                best = min(best, np.sqrt(d2) - grow - cradius[s])
+        else:
+            for t in range(lrange[lb, 0], lrange[lb, 1]):
+                dx, dy, dz = x - _place(poses[lb], ccenter[t], 0), y - _place(poses[lb], ccenter[t], 1), \
+                    z - _place(poses[lb], ccenter[t], 2)
+                best = min(best, np.sqrt(dx * dx + dy * dy + dz * dz) - cradius[s] - cradius[t])
+    return best
+
+
+def _cover_arrays(cover: SphereModel | None, n_links: int, obstacles: Sequence[Obstacle]) -> tuple:
+    """Arrays of :func:`_cover_distance`: the covering balls of the n_links links and the
+    obstacles' kernel shapes (a mesh obstacle becomes balls covering it); no balls without a cover."""
+    if cover is None:
+        lrange, ccenter, cradius = np.zeros((n_links, 2), dtype=np.int64), np.zeros((0, 3)), np.zeros(0)
+    else:
+        lrange, ccenter, cradius = cover.link_ranges(), np.ascontiguousarray(cover.centers), cover.radii
+    shapes = [obstacle_arrays([o]) for o in obstacles]
+    counts = np.array([len(a["otype"]) for a in shapes], dtype=np.int64)
+    orange = np.column_stack([np.cumsum(counts) - counts, np.cumsum(counts)]).reshape(-1, 2)
+    joined = {key: np.concatenate([a[key] for a in shapes]) if shapes else empty
+              for key, empty in (("otype", np.zeros(0, np.int64)), ("opose", np.zeros((0, 3, 4))),
+                                 ("oparam", np.zeros((0, 3))))}
+    return lrange, ccenter, cradius, joined["otype"], np.ascontiguousarray(joined["opose"]), joined["oparam"], orange
 
 
 @njit(cache=True, inline="always")
@@ -317,7 +389,7 @@ def certify_path(ctx: PlanningContext, path: np.ndarray, resolution: float | Non
 
 
 def certified_escape(ctx: PlanningContext, q: np.ndarray, toward: np.ndarray, rng: np.random.Generator,
-                     clearance: float, reach: float = 0.3, attempts: int = 24, samples: int = 32) -> np.ndarray | None:
+                     clearance: float, reach: float = 0.3, attempts: int = 64, samples: int = 32) -> np.ndarray | None:
     """A configuration the sphere model accepts, at least ``clearance`` (m) from the world,
     joined to q (dof,) by a straight segment certified on the exact geometry; None if there is none.
 

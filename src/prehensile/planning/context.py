@@ -28,7 +28,7 @@ from prehensile.collision import sphere_kernels as SK
 from prehensile.collision.acm import allowed_collision_matrix, rigid_bodies
 from prehensile.collision.sphere_checker import SphereChecker
 from prehensile.collision.sphere_fit import cover_geometries
-from prehensile.collision.spheres import SphereModel, generate_sphere_model
+from prehensile.collision.spheres import SphereModel, generate_sphere_model, replace_link_balls
 from prehensile.collision.world import Obstacle
 from prehensile.errors import PrehensileError
 from prehensile.model.geometry import Geometry, Shape
@@ -103,7 +103,7 @@ def attach_objects(model: RobotModel, spheres: SphereModel, acm: np.ndarray, att
         c, r = cover_geometries(geoms, n_spheres=balls)
         centers.append(c), radii.append(r), links.append(np.full(len(r), n + i))
     augmented_spheres = SphereModel(augmented.link_names, np.concatenate(links), np.concatenate(centers),
-                                    np.concatenate(radii))
+                                    np.concatenate(radii), spheres.covering)
     body = rigid_bodies(model)
     allowed = np.zeros((n + k, n + k), dtype=bool)
     allowed[:n, :n] = acm
@@ -195,6 +195,9 @@ class PlanningContext:
         spheres: the robot's sphere model (planning); default generated from its geometry. Robots
             with large primitive links (ARMAR-III's torso) want ``generate_sphere_model(model,
             max_radius=0.04)``: the default cover of a big box is coarse.
+        cover: balls covering the geometry (``covering``), for planning again when ``spheres``
+            does not cover it (a spherized URDF) and a path fails the exact certification
+            (see :meth:`refined`).
         acm: (L, L) allowed-collision matrix of ``model``; default from the model (SRDF).
         attached: grasped objects moving with their links.
         resolution: edge-check resolution (m): where the sphere clearance does not prove a
@@ -212,9 +215,11 @@ class PlanningContext:
                  q_ref: np.ndarray | None = None, T_world_base: np.ndarray | None = None,
                  spheres: SphereModel | None = None, acm: np.ndarray | None = None,
                  attached: Sequence[AttachedObject] = (), resolution: float = 0.005,
-                 certify_resolution: float = 0.002) -> None:
+                 certify_resolution: float = 0.002, cover: SphereModel | None = None) -> None:
         if not (resolution > 0 and certify_resolution > 0):
             raise PrehensileError(f"resolutions must be positive, got {resolution}, {certify_resolution}")
+        if cover is not None and not cover.covering:
+            raise PrehensileError("PlanningContext: cover must be a covering sphere model (generated or padded)")
         self.model = model
         self.obstacles = list(obstacles)
         self.attached = tuple(attached)
@@ -236,8 +241,13 @@ class PlanningContext:
         :meth:`motion_arrays`)."""
         self.scratch = SK.make_scratch(self.spheres.data)
         self.counters = np.zeros(1, dtype=np.int64)
-        self._exact = None
-        self._certifier = None
+        self._exact_checkers: dict = {}  # exact checker and certifier, shared with refined contexts
+        self._balls, self._cover = base_spheres, None if self.sphere_model.covering else cover
+        self.cover_model = self.sphere_model if self.sphere_model.covering else None if cover is None else \
+            attach_objects(model, cover, base_acm, self.attached)[1]
+        """Balls covering the geometry, objects included (for the certifier's bounds), or None."""
+        self._refine_args = (joints, q_ref, acm)
+        self._refined: dict[frozenset, PlanningContext] = {}
 
     def _motion_tables(self) -> tuple:
         model, checker = self.collision_model, self.spheres
@@ -270,14 +280,36 @@ class PlanningContext:
             self.motion = self.motion[:3] + (np.empty((need, 2)),) + self.motion[4:]
         return self.motion
 
+    def refined(self, links: set[str]) -> PlanningContext | None:
+        """The same query with the ``cover`` balls on ``links`` (names) and this context's
+        balls elsewhere (built once per link set); None without a cover.
+
+        Planners turn to it when a path found on balls that do not cover the geometry fails the
+        exact certification on those links: only where the balls proved wrong do they get the
+        larger covering balls (counterexample-guided refinement), so the rest of the robot keeps
+        its tighter fit.
+        """
+        if self._cover is None:
+            return None
+        key = frozenset(links) & frozenset(self.model.link_names)  # attached objects are covered already
+        if key not in self._refined:
+            joints, q_ref, acm = self._refine_args
+            spheres = replace_link_balls(self._balls, self._cover, set(key))
+            context = PlanningContext(self.model, self.obstacles, joints, q_ref, self.T_world_base, spheres, acm,
+                                      self.attached, self.resolution, self.certify_resolution)
+            context._exact_checkers = self._exact_checkers
+            self._refined[key] = context
+        return self._refined[key]
+
     @property
     def exact(self):
         """:class:`~prehensile.collision.exact.ExactChecker` on the true geometry (built on first use)."""
-        if self._exact is None:
+        if "exact" not in self._exact_checkers:
             from prehensile.collision.exact import ExactChecker
 
-            self._exact = ExactChecker(self.collision_model, self.obstacles, self.T_world_base, self.acm)
-        return self._exact
+            self._exact_checkers["exact"] = ExactChecker(self.collision_model, self.obstacles, self.T_world_base,
+                                                         self.acm)
+        return self._exact_checkers["exact"]
 
     def is_valid(self, q: np.ndarray) -> np.ndarray:
         """(*batch,) bool: q (*batch, dof) within the joint limits and free (sphere model)."""
@@ -303,8 +335,9 @@ class PlanningContext:
     @property
     def certifier(self):
         """The exact path certifier (:class:`~prehensile.planning.certify.ExactCertifier`), built on first use."""
-        if self._certifier is None:
+        if "certifier" not in self._exact_checkers:
             from prehensile.planning.certify import ExactCertifier
 
-            self._certifier = ExactCertifier(self.collision_model, self.obstacles, self.T_world_base, self.acm)
-        return self._certifier
+            self._exact_checkers["certifier"] = ExactCertifier(self.collision_model, self.obstacles,
+                                                               self.T_world_base, self.acm, self.cover_model)
+        return self._exact_checkers["certifier"]

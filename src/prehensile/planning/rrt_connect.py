@@ -25,8 +25,10 @@ does not depend on where the chunks end. Trees start small and double when full,
 ``max_nodes``.
 
 Afterwards the path is shortcut (:func:`~prehensile.planning.shortcut.shortcut`) and
-certified on the exact geometry (:func:`~prehensile.planning.certify.certify_path`); a path
-that fails certification is discarded and the search repeats with half the resolution.
+certified on the exact geometry (:func:`~prehensile.planning.certify.certify_path`). A path
+that fails certification is discarded and the search repeats: if the context's balls do not
+cover the geometry, with covering balls on the links that collided
+(:meth:`~prehensile.planning.context.PlanningContext.refined`), else with half the resolution.
 """
 
 from __future__ import annotations
@@ -70,8 +72,9 @@ class RRTConnectSettings:
         shortcut_iterations: random shortcut attempts.
         shortcut_time_s: time limit (s) of the random shortcut attempts.
         certify: certify the path on the exact geometry before returning SUCCESS.
-        certify_retries: searches repeated (at half the resolution each) after a path failed
-            certification, before giving up with CERTIFICATION_FAILED.
+        certify_retries: searches repeated after a path failed certification (with covering
+            balls on the links that collided, else at half the resolution each), before giving
+            up with CERTIFICATION_FAILED.
         escape: an endpoint within the limits that the sphere model rejects, or holds less
             than half the resolution from the world, gets a short straight escape motion
             certified on the exact geometry (:func:`~prehensile.planning.certify.certified_escape`)
@@ -87,7 +90,7 @@ class RRTConnectSettings:
     shortcut_iterations: int = 16
     shortcut_time_s: float = 0.05
     certify: bool = True
-    certify_retries: int = 2
+    certify_retries: int = 3
     escape: bool = True
 
     def __post_init__(self) -> None:
@@ -318,7 +321,8 @@ def rrt_connect(ctx: PlanningContext, q_start: np.ndarray, q_goal: np.ndarray,
     Returns:
         :class:`PlanResult`: on SUCCESS ``path`` (N, dof) runs from exactly q_start to exactly
         the reached goal (``goal_index`` its row), ``info`` has ``length`` (m, weighted),
-        ``attempts``, ``escapes`` (certified escape edges among the roots) and ``certify``
+        ``attempts``, ``escapes`` (certified escape edges among the roots), ``refined``
+        (links planned on covering balls, see ``settings.certify_retries``) and ``certify``
         (:class:`CertifyReport`, if certified). INVALID_START /
         INVALID_GOAL when the start / every goal is outside the limits, or in collision for
         the sphere model without a certified escape (see ``settings.escape``); TIMEOUT when
@@ -338,19 +342,27 @@ def rrt_connect(ctx: PlanningContext, q_start: np.ndarray, q_goal: np.ndarray,
         raise PrehensileError("rrt_connect: goal and start differ in joints that are not planned "
                               f"({', '.join(model.joint_names[i] for i in fixed)})")
     empty = np.zeros((0, model.dof))
-    roots = _roots(ctx, start, goals, settings, rng)
-    if isinstance(roots, PlanStatus):
-        return PlanResult(roots, empty, PlanStats(plan_time_s=time.perf_counter() - t0))
-    *roots, goal_rows = roots
-    state = rng_state(rng)
     deadline = t0 + settings.time_budget_s
     totals = dict(iterations=0, nodes=0, collision_checks=0, plan_time_s=0.0, simplify_time_s=0.0, certify_time_s=0.0)
     checks = np.zeros(1, dtype=np.int64)
     report: CertifyReport | None = None
+    state, searched, context, res, refined = None, None, ctx, ctx.resolution, set()
     for attempt in range(settings.certify_retries + 1):
-        res = ctx.resolution / 2 ** attempt
+        if report is not None:  # the last path failed certification
+            refined |= set(report.colliding_links)
+            finer = ctx.refined(refined)
+            context, res = (context, 0.5 * res) if finer is None or finer is context else (finer, res)
         begun = time.perf_counter()
-        path, root, counters = _search(ctx, roots, settings, state, res, deadline)
+        if context is not searched:
+            roots = _roots(context, start, goals, settings, rng)
+            if isinstance(roots, PlanStatus):
+                if report is None:
+                    return PlanResult(roots, empty, PlanStats(plan_time_s=time.perf_counter() - t0))
+                break
+            *roots, goal_rows = roots
+            searched = context
+        state = rng_state(rng) if state is None else state
+        path, root, counters = _search(context, roots, settings, state, res, deadline)
         totals["plan_time_s"] += time.perf_counter() - (t0 if attempt == 0 else begun)
         totals["iterations"] += int(counters[ITERATIONS])
         totals["nodes"] += int(counters[SIZE] + counters[SIZE + 1])
@@ -360,12 +372,13 @@ def rrt_connect(ctx: PlanningContext, q_start: np.ndarray, q_goal: np.ndarray,
             return PlanResult(status, empty, PlanStats(**totals), info={"attempts": attempt + 1, "certify": report})
         if settings.shortcut:
             begun = time.perf_counter()
-            path = shortcut(ctx, path, rng, settings.shortcut_iterations, settings.shortcut_time_s, res, checks)
+            path = shortcut(context, path, rng, settings.shortcut_iterations, settings.shortcut_time_s, res, checks)
             totals["simplify_time_s"] += time.perf_counter() - begun
         escapes = sum(flags == _CHECKED for tree in roots for _, _, flags in tree)
-        info = {"attempts": attempt + 1, "length": space.path_length(path[:, space.indices]), "escapes": escapes}
+        info = {"attempts": attempt + 1, "length": space.path_length(path[:, space.indices]), "escapes": escapes,
+                "refined": tuple(sorted(refined))}
         if settings.certify:
-            report = certify_path(ctx, path)
+            report = certify_path(context, path)
             totals["certify_time_s"] += report.time_s
             info["certify"] = report
         if report is None or report.ok:
@@ -375,4 +388,5 @@ def rrt_connect(ctx: PlanningContext, q_start: np.ndarray, q_goal: np.ndarray,
             break
     totals["collision_checks"] += int(checks[0])
     return PlanResult(PlanStatus.CERTIFICATION_FAILED, empty, PlanStats(**totals),
-                      info={"attempts": settings.certify_retries + 1, "certify": report})
+                      info={"attempts": attempt + 1, "certify": report})
+
