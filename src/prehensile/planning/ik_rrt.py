@@ -11,9 +11,10 @@ thesis, the search is probabilistically complete when the IK sampler is.
 
 The goal samplers: :func:`grasp_sampler` (one arm, a grasp set: IK-RRT),
 :func:`dual_arm_sampler` (both arms, sampled hip: bimanual IK-RRT, Alg. 17) and
-:func:`regrasp_sampler` (free object pose: hand-over, §4.4.2). :func:`multi_eef_rrt` runs one
-search per end effector round-robin in one thread and keeps the first success ("winner takes
-all", §4.3; the thesis uses one thread per hand).
+:func:`regrasp_sampler` (free object pose: hand-over, §4.4.2; grasp pairs whose hands would
+overlap and arm samples in self-collision are dropped once, up front). :func:`multi_eef_rrt`
+runs one search per end effector round-robin in one thread and keeps the first success
+("winner takes all", §4.3; the thesis uses one thread per hand).
 """
 
 from __future__ import annotations
@@ -25,12 +26,16 @@ from typing import Callable, Sequence
 
 import numpy as np
 
+from prehensile.collision.sphere_checker import SphereChecker
 from prehensile.ik.complete import CompleteIKSettings, solve_ik_complete
-from prehensile.ik.hybrid import HybridIKSettings, ObjectRegion, solve_ik_hybrid, solve_regrasp_ik
+from prehensile.ik.hybrid import (HybridIKSettings, ObjectRegion, ReachSamples, reach_samples, solve_ik_hybrid,
+                                  solve_regrasp_ik)
 from prehensile.ik.jacobian import ChainSolver
+from prehensile.kinematics.forward import forward_kinematics
 from prehensile.planning.context import PlanningContext
 from prehensile.planning.result import PlanResult, PlanStats, PlanStatus
 from prehensile.planning.rrt_connect import RRTConnectSettings, rrt_connect
+from prehensile.spatial.transforms import invert
 
 # a goal sampler draws one goal configuration (dof,) or None, and what it reached (grasp
 # indices, object pose, ...), within a time budget (s)
@@ -177,15 +182,74 @@ def dual_arm_sampler(ctx: PlanningContext, arms: Sequence[ChainSolver], target_p
 
 
 def regrasp_sampler(ctx: PlanningContext, arms: Sequence[ChainSolver], grasps: Sequence[np.ndarray],
-                    region: ObjectRegion, q_ref: np.ndarray, free: Sequence[str] | str | None = None) -> GoalSampler:
-    """Hand-over goals: an object pose in ``region`` where both hands hold their grasps."""
+                    region: ObjectRegion | None, q_ref: np.ndarray, free: Sequence[str] | str | None = None
+                    ) -> GoalSampler:
+    """Hand-over goals: an object pose in ``region`` (None: anywhere) where both hands hold
+    their grasps (:func:`~prehensile.ik.hybrid.solve_regrasp_ik`).
+
+    Found once here: the grasp pairs whose hands do not overlap (:func:`separate_grasp_pairs`)
+    and, per arm, the reachability samples free of self-collision (:func:`self_free_reach`).
+    """
+    pairs = separate_grasp_pairs(ctx, arms, grasps)
+    reach = [self_free_reach(ctx, arm) for arm in arms]
 
     def sample(rng: np.random.Generator, budget: float):
-        result, T_world_object = solve_regrasp_ik(arms, grasps, region, free, _random_seed(arms, q_ref, rng), rng,
-                                                  time_budget_s=max(budget, 1e-6),
+        result, T_world_object = solve_regrasp_ik(arms, grasps, region, free, q_ref, rng,
+                                                  time_budget_s=max(budget, 1e-6), pairs=pairs, reach=reach,
                                                   is_valid=lambda q: bool(ctx.is_valid(q)))
         if not result.success:
             return None, {}
         return result.q, {"grasps": result.target_indices, "T_world_object": T_world_object}
 
     return sample
+
+
+def separate_grasp_pairs(ctx: PlanningContext, arms: Sequence[ChainSolver], grasps: Sequence[np.ndarray]) -> np.ndarray:
+    """(P, 2) the grasp pairs (index per hand into ``grasps`` (k_h, 4, 4), T_object_tcp) at which
+    the two hands, with what they hold, do not overlap on the sphere model of ``ctx``.
+
+    A hand is every link (attached objects included) that no planned joint moves relative to
+    the arm's tool, posed at the context's reference configuration; at a grasp pair the
+    relative pose of the two tools is fixed, ``inverse(g_a) @ g_b``, so a pair whose hands
+    overlap there fails every validity check and is not worth an IK attempt.
+    """
+    balls = [_hand_balls(ctx, arm) for arm in arms]
+    (links_a, centers_a, radii_a), (links_b, centers_b, radii_b) = balls
+    checked = ~ctx.acm[links_a[:, None], links_b[None, :]]
+    grasp_sets = [arm.targets(g) for arm, g in zip(arms, grasps)]
+    pairs = []
+    for i, g_a in enumerate(grasp_sets[0]):
+        T = invert(g_a) @ grasp_sets[1]  # (k_b, 4, 4): tool b in the frame of tool a
+        centers = np.einsum("kij,nj->kni", T[:, :3, :3], centers_b) + T[:, None, :3, 3]
+        gap = np.linalg.norm(centers_a[None, :, None] - centers[:, None], axis=-1) - radii_a[:, None] - radii_b
+        pairs += [(i, j) for j in np.flatnonzero(~np.any((gap < 0.0) & checked, axis=(1, 2)))]
+    return np.array(pairs, dtype=np.int64).reshape(-1, 2)
+
+
+def self_free_reach(ctx: PlanningContext, arm: ChainSolver) -> ReachSamples:
+    """The arm's reachability samples (:func:`~prehensile.ik.hybrid.reach_samples`) at which the
+    robot, with its held objects and the other joints at the reference configuration, is free
+    of self-collision on the sphere model (obstacles not considered)."""
+    reach = reach_samples(arm)
+    checker = SphereChecker(ctx.collision_model, [], ctx.T_world_base, ctx.sphere_model, ctx.acm)
+    q = np.tile(ctx.space.q_ref, (len(reach.values), 1))
+    q[:, arm.var_q] = reach.values
+    return reach.subset(checker.is_free(q))
+
+
+def _hand_balls(ctx: PlanningContext, arm: ChainSolver) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Links (B,), centres in the tool frame (B, 3) and radii (B,) of the balls rigid with the tool."""
+    model, planned = ctx.collision_model, set(ctx.space.indices.tolist())
+
+    def deepest_planned(link: int) -> int:
+        return next((k for k in model.path_to_root(link) if model.joint_q_index[k] in planned), -1)
+
+    hand = deepest_planned(model.link_index(arm.chain.tip_link))
+    rigid = [link for link in range(model.n_links) if deepest_planned(link) == hand]
+    spheres = ctx.sphere_model
+    keep = np.isin(spheres.sphere_link, rigid)
+    links = spheres.sphere_link[keep]
+    poses = forward_kinematics(model, ctx.space.q_ref, arm.T_world_root)[links]
+    T_tool_link = invert(arm.tool_pose(ctx.space.q_ref)) @ poses
+    centers = np.einsum("nij,nj->ni", T_tool_link[:, :3, :3], spheres.centers[keep]) + T_tool_link[:, :3, 3]
+    return links, centers, spheres.radii[keep]

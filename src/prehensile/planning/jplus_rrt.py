@@ -1,14 +1,26 @@
 """J+-RRT: a unidirectional RRT toward a workspace goal, grown by Jacobian steps.
 
-Vahrenkamp 2011 §4.1 (Alg. 13-15). The tree grows from the start by ordinary RRT steps; with
-probability ``goal_probability`` a random grasp g is picked and the tree node whose tool pose
-is nearest to g's target pose (SE(3) metric, §2.2) among the nodes not yet marked for g is
+Vahrenkamp 2011 §4.1 (Alg. 13-15) and §4.4.2 (Regrasp-J+-RRT, Alg. 18-20). The tree grows
+from the start by ordinary RRT steps; with probability ``goal_probability`` a random goal g
+(a grasp) is picked and the tree node nearest to it among the nodes not yet marked for g is
 pulled toward it by pseudoinverse steps, ``c' = c + J^+(c) clamp(Δp)``, each new
-configuration joining the tree. A blocked step (collision or joint limit) marks the node for
-g, so that the same node is not pulled toward the same grasp again. No IK solver is needed;
-the goal is reached when the tool is within the tolerances of a grasp pose.
+configuration joining the tree. A blocked step (collision, joint limit, or no progress) marks
+the node for g, so that the same node is not pulled toward the same goal again. No IK solver
+is needed.
 
-The search loop runs in Python over compiled pieces (tool pose and Jacobian, motion checks);
+- :func:`jplus_rrt`: one tool, a set of tool poses (the grasps of an object); nearest node in
+  the SE(3) metric ``|Δt| + rotation_weight * angle`` (§2.2).
+- :func:`regrasp_jplus_rrt`: two tools, a grasp pair (g_a, g_b) of one object. With the object
+  pose free (hand-over, Alg. 18-20) the goal is the relation of the two tools, ``T_b^-1 T_a =
+  g_b^-1 g_a``: the object is where tool b holds it, and the nearest node is the one whose
+  relation is closest. The steps move both arms at once: a stacked pseudoinverse over both
+  arms and the object's twist (:class:`~prehensile.ik.hybrid.HandPair`), where the thesis
+  alternates single-arm steps toward the pose the other hand currently implies; both split
+  the motion between the arms.
+  With a set of object poses (bimanual J+-RRT) each goal is a pose and a grasp pair, and the
+  two tools step toward fixed targets.
+
+The search loop runs in Python over compiled pieces (tool poses and Jacobians, motion checks);
 the returned path is shortcut and certified with the exact geometry like every planner's.
 """
 
@@ -16,29 +28,32 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from typing import Sequence
 
 import numpy as np
 
 from prehensile.errors import PrehensileError
 from prehensile.ik import kernels as ik_kernels
-from prehensile.ik.jacobian import ChainSolver
+from prehensile.ik.hybrid import HandPair
+from prehensile.ik.jacobian import ChainSolver, JacobianIKSettings
 from prehensile.planning.context import PlanningContext
 from prehensile.planning.finish import finish_path
 from prehensile.planning.result import PlanResult, PlanStats, PlanStatus
+from prehensile.spatial.transforms import invert
 
 
 @dataclass(frozen=True)
 class JPlusRRTSettings:
-    """Settings of :func:`jplus_rrt`.
+    """Settings of :func:`jplus_rrt` and :func:`regrasp_jplus_rrt`.
 
     Attributes:
         time_budget_s: search budget (s).
         step: RRT extension step in the workspace-weighted metric (m).
-        goal_probability: chance per iteration of an extension toward a grasp (r_ExtendToGoal).
+        goal_probability: chance per iteration of an extension toward a goal (r_ExtendToGoal, r_Re).
         max_step_position, max_step_rotation: Cartesian step clamp of a Jacobian step (m, rad).
-        position_tolerance, rotation_tolerance: goal reached (m, rad).
+        position_tolerance, rotation_tolerance: goal reached (m, rad), per tool.
         rotation_weight: m per rad in the SE(3) metric of the nearest-node search.
-        max_goal_steps: Jacobian steps per extension toward a grasp.
+        max_goal_steps: Jacobian steps per extension toward a goal.
         max_nodes: tree capacity.
         shortcut_iterations: random shortcuts of the found path.
         certify: certify the path with the exact geometry before returning it.
@@ -59,23 +74,26 @@ class JPlusRRTSettings:
 
 
 class _Tree:
-    """Nodes (N, dof) with parents, tool poses and per-grasp marks, in growing arrays."""
+    """Nodes (N, dof) with parents, tool poses (N, T, 4, 4) and per-goal marks, in growing arrays."""
 
-    def __init__(self, q_start: np.ndarray, tool: np.ndarray, n_grasps: int, capacity: int) -> None:
+    def __init__(self, q_start: np.ndarray, tools: np.ndarray, capacity: int) -> None:
         self.q = np.empty((capacity, len(q_start)))
         self.parent = np.empty(capacity, dtype=np.int64)
-        self.tool = np.empty((capacity, 4, 4))
-        self.marked = np.zeros((capacity, n_grasps), dtype=bool)
+        self.tools = np.empty((capacity,) + tools.shape)
+        self.marked: dict[int, list[int]] = {}
         self.count = 0
-        self.add(q_start, -1, tool)
+        self.add(q_start, -1, tools)
 
-    def add(self, q: np.ndarray, parent: int, tool: np.ndarray) -> int:
+    def add(self, q: np.ndarray, parent: int, tools: np.ndarray) -> int:
         if self.count == len(self.q):
             raise IndexError("tree full")
         i = self.count
-        self.q[i], self.parent[i], self.tool[i] = q, parent, tool
+        self.q[i], self.parent[i], self.tools[i] = q, parent, tools
         self.count += 1
         return i
+
+    def mark(self, node: int, goal: int) -> None:
+        self.marked.setdefault(goal, []).append(node)
 
     def path_to(self, i: int) -> np.ndarray:
         nodes = []
@@ -83,6 +101,82 @@ class _Tree:
             nodes.append(self.q[i])
             i = int(self.parent[i])
         return np.array(nodes[::-1])
+
+
+class _PoseGoals:
+    """One tool toward any of the world poses ``targets`` (k, 4, 4)."""
+
+    def __init__(self, ctx: PlanningContext, solver: ChainSolver, targets: np.ndarray, s: JPlusRRTSettings) -> None:
+        self.solver, self.targets, self.s = solver, solver.targets(targets), s
+        self.count = len(self.targets)
+        self.idx, self.lower, self.upper = ctx.space.indices, ctx.space.lower, ctx.space.upper
+        self._scratch = (np.empty((len(solver.table), 3, 4)), np.empty((4, 4)), np.empty((6, solver.n)), np.empty(6))
+
+    def tools(self, q: np.ndarray) -> np.ndarray:
+        return self.solver.tool_pose(q)[None]
+
+    def distance(self, tools: np.ndarray, g: int) -> np.ndarray:
+        return _se3_distance(tools[:, 0], self.targets[g], self.s.rotation_weight)
+
+    def step(self, q: np.ndarray, g: int) -> tuple[np.ndarray | None, float, float]:
+        """(q' or None outside the joint limits, position and rotation error at q)."""
+        solver, s = self.solver, self.s
+        frames, pose, jac, err = self._scratch
+        ik_kernels.chain_pose_jacobian(q, solver.T_world_root, solver.table, solver.var_of_q, solver.T_tip_tcp,
+                                       frames, pose, jac)
+        ik_kernels.pose_error(self.targets[g], pose, err)
+        pos_err, rot_err = np.linalg.norm(err[:3]), np.linalg.norm(err[3:])
+        err[:3] *= min(1.0, s.max_step_position / max(pos_err, 1e-300))
+        err[3:] *= min(1.0, s.max_step_rotation / max(rot_err, 1e-300))
+        q_new = q.copy()
+        q_new[self.idx] = q[self.idx] + np.linalg.pinv(jac) @ err
+        inside = np.all(q_new[self.idx] >= self.lower) and np.all(q_new[self.idx] <= self.upper)
+        return (q_new if inside else None), pos_err, rot_err
+
+    def info(self, q: np.ndarray, g: int) -> dict:
+        return {}
+
+
+class _GraspPairGoals:
+    """Two tools at a grasp pair of one object; goal g = (object pose p, grasp i, grasp j).
+
+    ``objects``: (m, 4, 4) object poses to choose from, or None: the object is free, at the
+    pose where tool b holds it.
+    """
+
+    def __init__(self, pair: HandPair, grasps: Sequence[np.ndarray], objects: np.ndarray | None,
+                 s: JPlusRRTSettings) -> None:
+        self.pair, self.s = pair, s
+        self.grasps = [arm.targets(g) for arm, g in zip(pair.arms, grasps)]
+        self.objects = None if objects is None else pair.arms[0].targets(objects)
+        self.shape = (1 if objects is None else len(self.objects), len(self.grasps[0]), len(self.grasps[1]))
+        self.count = int(np.prod(self.shape))
+
+    def tools(self, q: np.ndarray) -> np.ndarray:
+        return self.pair.poses(q)
+
+    def _object(self, tools: np.ndarray, g: int) -> tuple[np.ndarray, np.ndarray]:
+        """The object pose(s) (..., 4, 4) goal g wants for tool poses (..., 2, 4, 4), and its grasps (2, 4, 4)."""
+        p, i, j = np.unravel_index(g, self.shape)
+        grasps = np.stack([self.grasps[0][i], self.grasps[1][j]])
+        return (tools[..., 1, :, :] @ invert(grasps[1]) if self.objects is None else self.objects[p]), grasps
+
+    def distance(self, tools: np.ndarray, g: int) -> np.ndarray:
+        """Both tools' SE(3) distances to the goal's grasp poses (for a free object: tool a's to
+        where tool b wants it, the distance of the two tools' relation from the goal's)."""
+        T, grasps = self._object(tools, g)
+        w = self.s.rotation_weight
+        return _se3_distance(tools[:, 0], T @ grasps[0], w) + _se3_distance(tools[:, 1], T @ grasps[1], w)
+
+    def step(self, q: np.ndarray, g: int) -> tuple[np.ndarray, float, float]:
+        T, grasps = self._object(self.pair.poses(q), g)
+        q_new, _, pos_err, rot_err = self.pair.step(q, T, grasps, free_object=self.objects is None)
+        return q_new, pos_err, rot_err
+
+    def info(self, q: np.ndarray, g: int) -> dict:
+        T, _ = self._object(self.pair.poses(q), g)
+        p, i, j = np.unravel_index(g, self.shape)
+        return {"grasps": (int(i), int(j)), "object_index": int(p), "T_world_object": T}
 
 
 def jplus_rrt(ctx: PlanningContext, q_start: np.ndarray, target_poses: np.ndarray, T_tip_tcp: np.ndarray | None = None,
@@ -98,66 +192,105 @@ def jplus_rrt(ctx: PlanningContext, q_start: np.ndarray, target_poses: np.ndarra
     Returns:
         :class:`PlanResult`; ``goal_index`` is the grasp reached.
     """
+    return _grow(ctx, q_start, _PoseGoals(ctx, _chain_solver(ctx, T_tip_tcp), target_poses, settings), settings, rng)
+
+
+def regrasp_jplus_rrt(ctx: PlanningContext, q_start: np.ndarray, arms: Sequence[ChainSolver],
+                      grasps: Sequence[np.ndarray], objects: np.ndarray | None = None,
+                      free: Sequence[str] | str | None = None, settings: JPlusRRTSettings = JPlusRRTSettings(),
+                      rng: np.random.Generator | int | None = None) -> PlanResult:
+    """Plan from ``q_start`` until both tools hold one object by a grasp pair.
+
+    Args:
+        ctx: planning context; it plans (at least) both arms' joints and ``free``.
+        q_start: (dof,) start configuration.
+        arms: the two arm solvers (tools at the hands' TCPs), e.g. [receiving, holding].
+        grasps: per arm the grasp set T_object_tcp (k_h, 4, 4).
+        objects: (m, 4, 4) world object poses to choose from (bimanual J+-RRT), or None: the
+            object pose is free (hand-over, Regrasp-J+-RRT).
+        free: further joints the Jacobian steps move with the arms (e.g. "Torso").
+
+    Returns:
+        :class:`PlanResult`; ``goal_index`` indexes (object pose, grasp a, grasp b) in C order,
+        ``info`` holds ``grasps`` (i, j), ``object_index`` and ``T_world_object`` (4, 4) (for a
+        free object: ``T_world_tcp_b @ inverse(g_b)`` at the last configuration).
+    """
+    s = settings
+    pair = HandPair(arms, free, JacobianIKSettings(method="pinv", max_step_position=s.max_step_position,
+                                                   max_step_rotation=s.max_step_rotation))
+    if any(not np.allclose(arm.T_world_root, ctx.T_world_base) for arm in arms):
+        raise PrehensileError("regrasp J+-RRT: the arm solvers' root pose differs from the context's T_world_base")
+    if np.setdiff1d(pair.var_q, ctx.space.indices).size:
+        raise PrehensileError(f"regrasp J+-RRT: the arms and free joints move joints the context does not plan; "
+                              f"planned: {', '.join(ctx.space.joint_names)}")
+    return _grow(ctx, q_start, _GraspPairGoals(pair, grasps, objects, s), s, rng)
+
+
+def _grow(ctx: PlanningContext, q_start: np.ndarray, goals, s: JPlusRRTSettings,
+          rng: np.random.Generator | int | None) -> PlanResult:
+    """The J+-RRT loop (Alg. 13) over ``goals`` (:class:`_PoseGoals` or :class:`_GraspPairGoals`)."""
     start_time = time.perf_counter()
     rng = np.random.default_rng(rng)
-    solver = _chain_solver(ctx, T_tip_tcp)
-    targets = solver.targets(target_poses)
     q_start = np.array(ctx.model.check_configuration(q_start, "q_start"), dtype=float)
     counted = int(ctx.counters[0])
     if not ctx.is_valid(q_start):
-        return _result(PlanStatus.INVALID_START, ctx, None, 0, 0, counted, start_time)
-    s = settings
-    tree = _Tree(q_start, solver.tool_pose(q_start), len(targets), s.max_nodes)
-    idx, w = ctx.space.indices, ctx.space.weights
-    lower, upper = ctx.space.lower, ctx.space.upper
-    pose, jac = np.empty((4, 4)), np.empty((6, solver.n))
-    frames, err = np.empty((len(solver.table), 3, 4)), np.empty(6)
-
-    def tool_and_jacobian(q):
-        ik_kernels.chain_pose_jacobian(q, solver.T_world_root, solver.table, solver.var_of_q, solver.T_tip_tcp,
-                                       frames, pose, jac)
-        return pose.copy()
-
+        return _result(PlanStatus.INVALID_START, ctx, 0, 0, counted, start_time)
+    tree = _Tree(q_start, goals.tools(q_start), s.max_nodes)
     iterations = 0
     try:
         while time.perf_counter() - start_time < s.time_budget_s:
             iterations += 1
-            if rng.random() >= s.goal_probability:  # ordinary RRT extension
-                sample = rng.uniform(lower, upper)
-                near = _nearest(tree, idx, w, sample)
-                step = sample - tree.q[near, idx]
-                length = float(w @ np.abs(step))
-                if length == 0.0:
-                    continue
-                q_new = tree.q[near].copy()
-                q_new[idx] += step * min(1.0, s.step / length)
-                if ctx.check_motion(tree.q[near], q_new):
-                    tree.add(q_new, near, solver.tool_pose(q_new))
+            if rng.random() >= s.goal_probability:
+                _extend_randomly(ctx, tree, goals, s.step, rng)
                 continue
-            g = int(rng.integers(len(targets)))
-            node = _nearest_pose(tree, g, targets[g], s.rotation_weight)
-            if node < 0:
+            g = int(rng.integers(goals.count))
+            d = goals.distance(tree.tools[:tree.count], g)
+            d[tree.marked.get(g, [])] = np.inf
+            node = int(np.argmin(d))
+            if not np.isfinite(d[node]):
                 continue
-            for _ in range(s.max_goal_steps):  # ExtendToGoal
-                q = tree.q[node]
-                tool_and_jacobian(q)
-                ik_kernels.pose_error(targets[g], pose, err)
-                pos_err, rot_err = np.linalg.norm(err[:3]), np.linalg.norm(err[3:])
-                if pos_err <= s.position_tolerance and rot_err <= s.rotation_tolerance:
-                    path = tree.path_to(node)
-                    return _finish(ctx, path, rng, s, iterations, tree.count, counted, start_time, g)
-                err[:3] *= min(1.0, s.max_step_position / max(pos_err, 1e-300))
-                err[3:] *= min(1.0, s.max_step_rotation / max(rot_err, 1e-300))
-                q_new = q.copy()
-                q_new[idx] = q[idx] + np.linalg.pinv(jac) @ err
-                if np.any(q_new[idx] < lower) or np.any(q_new[idx] > upper) or not ctx.check_motion(q, q_new):
-                    tree.marked[node, g] = True
-                    break
-                node = tree.add(q_new, node, tool_and_jacobian(q_new))
-                tree.marked[node, g] = True
+            reached = _extend_to_goal(ctx, tree, node, g, goals, s)
+            if reached >= 0:
+                return _finish(ctx, tree.path_to(reached), rng, s, iterations, tree.count, counted, start_time, g,
+                               goals.info(tree.q[reached], g))
     except IndexError:  # the tree is full: report like a timeout
         pass
-    return _result(PlanStatus.TIMEOUT, ctx, None, iterations, tree.count, counted, start_time)
+    return _result(PlanStatus.TIMEOUT, ctx, iterations, tree.count, counted, start_time)
+
+
+def _extend_randomly(ctx: PlanningContext, tree: _Tree, goals, step: float, rng: np.random.Generator) -> None:
+    """One RRT step from the node nearest to a uniform sample (workspace-weighted metric)."""
+    idx, w = ctx.space.indices, ctx.space.weights
+    sample = rng.uniform(ctx.space.lower, ctx.space.upper)
+    near = int(np.argmin(np.abs(tree.q[:tree.count][:, idx] - sample) @ w))
+    delta = sample - tree.q[near, idx]
+    length = float(w @ np.abs(delta))
+    if length == 0.0:
+        return
+    q_new = tree.q[near].copy()
+    q_new[idx] += delta * min(1.0, step / length)
+    if ctx.check_motion(tree.q[near], q_new):
+        tree.add(q_new, near, goals.tools(q_new))
+
+
+def _extend_to_goal(ctx: PlanningContext, tree: _Tree, node: int, g: int, goals, s: JPlusRRTSettings) -> int:
+    """ExtendToGoal (Alg. 14): Jacobian steps from ``node`` toward goal g, each new
+    configuration a tree node; the node reaching it, or -1 when a step is blocked (collision,
+    joint limit, or an error that stops shrinking) or the steps run out."""
+    last = np.inf
+    for _ in range(s.max_goal_steps):
+        q = tree.q[node]
+        q_new, pos_err, rot_err = goals.step(q, g)
+        if pos_err <= s.position_tolerance and rot_err <= s.rotation_tolerance:
+            return node
+        error = pos_err + s.rotation_weight * rot_err
+        if q_new is None or error >= last or not ctx.check_motion(q, q_new):
+            tree.mark(node, g)
+            return -1
+        last = error
+        node = tree.add(q_new, node, goals.tools(q_new))
+        tree.mark(node, g)
+    return -1
 
 
 def _chain_solver(ctx: PlanningContext, T_tip_tcp: np.ndarray | None) -> ChainSolver:
@@ -170,30 +303,23 @@ def _chain_solver(ctx: PlanningContext, T_tip_tcp: np.ndarray | None) -> ChainSo
                           f"'{ctx.model.name}'; chains: {', '.join(ctx.model.chains)}")
 
 
-def _nearest(tree: _Tree, idx: np.ndarray, w: np.ndarray, sample: np.ndarray) -> int:
-    """Index of the node nearest to ``sample`` (n,) in the workspace-weighted metric."""
-    return int(np.argmin(np.abs(tree.q[:tree.count][:, idx] - sample) @ w))
+def _se3_distance(poses: np.ndarray, targets: np.ndarray, rotation_weight: float) -> np.ndarray:
+    """(N,) ``|Δt| + rotation_weight * angle`` between poses (N, 4, 4) and targets (N or 1, 4, 4)
+    or (4, 4) (Vahrenkamp A.3.2)."""
+    targets = np.broadcast_to(targets, poses.shape)
+    cos = np.clip((np.einsum("nij,nij->n", poses[:, :3, :3], targets[:, :3, :3]) - 1.0) / 2.0, -1.0, 1.0)
+    return np.linalg.norm(poses[:, :3, 3] - targets[:, :3, 3], axis=1) + rotation_weight * np.arccos(cos)
 
 
-def _nearest_pose(tree: _Tree, g: int, target: np.ndarray, rotation_weight: float) -> int:
-    """Node not marked for grasp g whose tool pose is nearest to ``target`` (4, 4) in the SE(3)
-    metric ``|Δt| + rotation_weight * angle`` (Vahrenkamp A.3.2); -1 if all are marked."""
-    tools = tree.tool[:tree.count]
-    cos = np.clip((np.einsum("nij,ij->n", tools[:, :3, :3], target[:3, :3]) - 1.0) / 2.0, -1.0, 1.0)
-    d = np.linalg.norm(tools[:, :3, 3] - target[:3, 3], axis=1) + rotation_weight * np.arccos(cos)
-    d[tree.marked[:tree.count, g]] = np.inf
-    i = int(np.argmin(d))
-    return i if np.isfinite(d[i]) else -1
-
-
-def _finish(ctx, path, rng, s, iterations, nodes, counted, start_time, goal_index) -> PlanResult:
+def _finish(ctx, path, rng, s, iterations, nodes, counted, start_time, goal_index, info) -> PlanResult:
     plan_time = time.perf_counter() - start_time
     status, path, simplify_time, certify_time = finish_path(ctx, path, rng, s.shortcut_iterations, s.certify)
     stats = PlanStats(iterations, nodes, int(ctx.counters[0]) - counted, 0, plan_time, simplify_time, certify_time)
-    return PlanResult(status, path if status is PlanStatus.SUCCESS else np.zeros((0, ctx.model.dof)), stats,
-                      goal_index if status is PlanStatus.SUCCESS else -1)
+    if status is not PlanStatus.SUCCESS:
+        return PlanResult(status, np.zeros((0, ctx.model.dof)), stats)
+    return PlanResult(status, path, stats, goal_index, info=info)
 
 
-def _result(status, ctx, path, iterations, nodes, counted, start_time) -> PlanResult:
+def _result(status, ctx, iterations, nodes, counted, start_time) -> PlanResult:
     stats = PlanStats(iterations, nodes, int(ctx.counters[0]) - counted, 0, time.perf_counter() - start_time)
     return PlanResult(status, np.zeros((0, ctx.model.dof)), stats)
