@@ -72,7 +72,7 @@ def test_regrasp_ik_finds_a_hand_over_pose(armar):
     grasps = [np.eye(4)[None], (invert(T_world_left) @ T_world_right)[None]]  # the object is at the left TCP
     p, rpy = T_world_left[:3, 3], matrix_to_rpy(T_world_left[:3, :3])
     region = ObjectRegion(tuple(p - 0.02), tuple(p + 0.02), tuple(rpy - 0.05), tuple(rpy + 0.05))
-    result, T_world_object = solve_regrasp_ik([left, right], grasps, region, "Torso", rng=0, time_budget_s=2.0,
+    result, T_world_object = solve_regrasp_ik([left, right], grasps, region, "Torso", rng=0, time_budget_s=30.0,
                                               is_valid=collision_filter(exact_checker=exact))
     assert result.success and T_world_object is not None
     np.testing.assert_allclose(left.tool_pose(result.q)[:3, 3], T_world_object[:3, 3], atol=1e-4)

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from typing import Sequence
 
 import numpy as np
 
@@ -198,3 +199,15 @@ def solve_ik(model: RobotModel, chain: str, target: np.ndarray, q_seed: np.ndarr
              settings: JacobianIKSettings = JacobianIKSettings(), T_tip_tcp: np.ndarray | None = None) -> IKResult:
     """One Jacobian IK solve of ``chain`` toward ``target`` from ``q_seed`` (see :class:`ChainSolver`)."""
     return ChainSolver(model, chain, T_tip_tcp=T_tip_tcp, settings=settings).solve(target, q_seed)
+
+
+def free_joint_indices(model: RobotModel, arms: Sequence[ChainSolver], free: Sequence[str] | str | None) -> np.ndarray:
+    """q indices (f,) of the free joints: a chain name, joint names, or None for none."""
+    if free is None:
+        return np.zeros(0, dtype=np.int64)
+    indices = model.chain_q_indices(free) if isinstance(free, str) else np.array(
+        [model.joint_index(j) for j in free], dtype=np.int64)
+    for arm in arms:
+        if np.intersect1d(indices, arm.var_q).size:
+            raise PrehensileError(f"free joints and arm chain '{arm.chain.name}' overlap")
+    return indices

@@ -121,7 +121,7 @@ def _solve_spd(A, b, x):
 
 
 @njit(cache=True, fastmath=FAST)
-def _step(method, Jw, ew, damping, A, x, dq):
+def joint_step(method, Jw, ew, damping, A, x, dq):
     """Joint step dq (n,) for the weighted task Jacobian Jw (m, n) and error ew (m,).
 
     ``A`` (m, m) and ``x`` (m,) are scratch space.
@@ -222,7 +222,7 @@ def solve(q, targets, target_index, T_world_root, table, var_of_q, var_q, T_tip_
             ew[k] = row_weight[k] * err[rows[k]]
             for c in range(n):
                 Jw[k, c] = row_weight[k] * jac[rows[k], c]
-        _step(method, Jw, ew, damping, A, x, dq)
+        joint_step(method, Jw, ew, damping, A, x, dq)
         # joints at a limit that the step pushes further out drop out of this step
         blocked = False
         for c in range(n):
@@ -232,7 +232,7 @@ def solve(q, targets, target_index, T_world_root, table, var_of_q, var_q, T_tip_
                 for k in range(m):
                     Jw[k, c] = 0.0
         if blocked:
-            _step(method, Jw, ew, damping, A, x, dq)
+            joint_step(method, Jw, ew, damping, A, x, dq)
         for c in range(n):
             qi = var_q[c]
             q[qi] = min(max(q[qi] + gain * dq[c], lower[c]), upper[c])

@@ -28,9 +28,9 @@ import numpy as np
 
 from prehensile.collision.sphere_checker import SphereChecker
 from prehensile.ik.complete import CompleteIKSettings, solve_ik_complete
-from prehensile.ik.hybrid import (HybridIKSettings, ObjectRegion, ReachSamples, reach_samples, solve_ik_hybrid,
-                                  solve_regrasp_ik)
+from prehensile.ik.hybrid import HybridIKSettings, ObjectRegion, solve_ik_hybrid, solve_regrasp_ik
 from prehensile.ik.jacobian import ChainSolver
+from prehensile.ik.reach import ReachSamples, reach_samples
 from prehensile.kinematics.forward import forward_kinematics
 from prehensile.planning.context import PlanningContext
 from prehensile.planning.result import PlanResult, PlanStats, PlanStatus
@@ -227,7 +227,7 @@ def separate_grasp_pairs(ctx: PlanningContext, arms: Sequence[ChainSolver], gras
 
 
 def self_free_reach(ctx: PlanningContext, arm: ChainSolver) -> ReachSamples:
-    """The arm's reachability samples (:func:`~prehensile.ik.hybrid.reach_samples`) at which the
+    """The arm's reachability samples (:func:`~prehensile.ik.reach.reach_samples`) at which the
     robot, with its held objects and the other joints at the reference configuration, is free
     of self-collision on the sphere model (obstacles not considered)."""
     reach = reach_samples(arm)

@@ -14,7 +14,7 @@ is needed.
   pose free (hand-over, Alg. 18-20) the goal is the relation of the two tools, ``T_b^-1 T_a =
   g_b^-1 g_a``: the object is where tool b holds it, and the nearest node is the one whose
   relation is closest. The steps move both arms at once: a stacked pseudoinverse over both
-  arms and the object's twist (:class:`~prehensile.ik.hybrid.HandPair`), where the thesis
+  arms and the object's twist (:class:`~prehensile.ik.hand_pair.HandPair`), where the thesis
   alternates single-arm steps toward the pose the other hand currently implies; both split
   the motion between the arms.
   With a set of object poses (bimanual J+-RRT) each goal is a pose and a grasp pair, and the
@@ -34,7 +34,7 @@ import numpy as np
 
 from prehensile.errors import PrehensileError
 from prehensile.ik import kernels as ik_kernels
-from prehensile.ik.hybrid import HandPair
+from prehensile.ik.hand_pair import HandPair
 from prehensile.ik.jacobian import ChainSolver, JacobianIKSettings
 from prehensile.planning.context import PlanningContext
 from prehensile.planning.finish import finish_path
