@@ -296,7 +296,7 @@ class PlanningContext:
             joints, q_ref, acm = self._refine_args
             spheres = replace_link_balls(self._balls, self._cover, set(key))
             context = PlanningContext(self.model, self.obstacles, joints, q_ref, self.T_world_base, spheres, acm,
-                                      self.attached, self.resolution, self.certify_resolution)
+                                      self.attached, self.resolution, self.certify_resolution, self._cover)
             context._exact_checkers = self._exact_checkers
             self._refined[key] = context
         return self._refined[key]
