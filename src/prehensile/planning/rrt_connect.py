@@ -348,11 +348,11 @@ def rrt_connect(ctx: PlanningContext, q_start: np.ndarray, q_goal: np.ndarray,
     report: CertifyReport | None = None
     state, searched, context, res, refined = None, None, ctx, ctx.resolution, set()
     for attempt in range(settings.certify_retries + 1):
+        begun = time.perf_counter()
         if report is not None:  # the last path failed certification
             refined |= set(report.colliding_links)
             finer = ctx.refined(refined)
             context, res = (context, 0.5 * res) if finer is None or finer is context else (finer, res)
-        begun = time.perf_counter()
         if context is not searched:
             roots = _roots(context, start, goals, settings, rng)
             if isinstance(roots, PlanStatus):
