@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from prehensile import robots
-from prehensile.benchmarking.mbm import MBMSettings, _Problem, benchmark_spheres, load_problems
+from prehensile.benchmarking.mbm import MBMSettings, PreparedProblem, benchmark_spheres, load_problems
 from prehensile.benchmarking.stats import machine, versions
 from prehensile.planning import RRTConnectSettings, rrt_connect
 from prehensile.planning.certify import ExactCertifier
@@ -35,8 +35,9 @@ def main() -> None:
     settings = MBMSettings(time_budget_s=2.0)
     rows = []
     for number, problem in enumerate(load_problems(MBM / "problems.tar.bz2", model, args.limit)):
-        ctx = _Problem(model, spheres, problem, settings).ctx
-        result = rrt_connect(ctx, problem.request.start_configuration(model), problem.request.goal_configuration(model),
+        prepared = PreparedProblem(model, spheres, problem, settings)
+        ctx = prepared.ctx
+        result = rrt_connect(ctx, prepared.q_start, prepared.q_goal,
                              RRTConnectSettings(time_budget_s=2.0, certify=False), np.random.default_rng(number))
         if not result.success:
             continue

@@ -145,7 +145,7 @@ def path_collides_exactly(space, exact, path: np.ndarray, resolution: float) -> 
     return len(active) == 1 and not bool(exact.is_free(path[0]))
 
 
-class _Problem:
+class PreparedProblem:
     """One problem prepared for planning: context, start and goal."""
 
     def __init__(self, model: RobotModel, spheres: tuple[SphereModel, SphereModel | None], problem: MBMProblem,
@@ -164,7 +164,7 @@ class _Problem:
         _ = self.ctx.certifier
 
 
-def _ours(prepared: _Problem, settings: MBMSettings, seed: int) -> dict:
+def _ours(prepared: PreparedProblem, settings: MBMSettings, seed: int) -> dict:
     from prehensile.planning import RRTConnectSettings, rrt_connect
 
     rng = np.random.default_rng(seed)
@@ -175,7 +175,7 @@ def _ours(prepared: _Problem, settings: MBMSettings, seed: int) -> dict:
     return _record(prepared, result, wall - result.stats.certify_time_s, settings)
 
 
-def _ompl(prepared: _Problem, settings: MBMSettings) -> dict:
+def _ompl(prepared: PreparedProblem, settings: MBMSettings) -> dict:
     from prehensile.benchmarking.ompl_peer import OMPLSettings, ompl_rrt_connect
 
     ompl_settings = OMPLSettings(time_budget_s=settings.time_budget_s, resolution=settings.resolution)
@@ -184,7 +184,7 @@ def _ompl(prepared: _Problem, settings: MBMSettings) -> dict:
     return _record(prepared, result, result.stats.plan_time_s + result.stats.simplify_time_s, settings)
 
 
-def _record(prepared: _Problem, result, time_s: float, settings: MBMSettings) -> dict:
+def _record(prepared: PreparedProblem, result, time_s: float, settings: MBMSettings) -> dict:
     """The per-problem record of one planner's result."""
     space = prepared.ctx.space
     record = {
@@ -278,7 +278,7 @@ def run_mbm(problems_path: str | Path, model: RobotModel, spheres: tuple[SphereM
     _warm_up(model, spheres, problems[0], settings)
     runs = []
     for number, problem in enumerate(problems):
-        prepared = _Problem(model, spheres, problem, settings)
+        prepared = PreparedProblem(model, spheres, problem, settings)
         run = {"scenario": problem.scenario, "index": problem.index,
                "ours": _ours(prepared, settings, settings.seed + number)}
         if settings.compare_ompl:
@@ -300,7 +300,7 @@ def run_mbm(problems_path: str | Path, model: RobotModel, spheres: tuple[SphereM
     if settings.compare_ompl:
         from prehensile.benchmarking.ompl_peer import segment_fraction, validity_call_seconds
 
-        prepared = _Problem(model, spheres, problems[0], settings)
+        prepared = PreparedProblem(model, spheres, problems[0], settings)
         report["ompl"]["validity_call_us"] = 1e6 * validity_call_seconds(prepared.ctx.spheres, prepared.q_start)
         report["ompl"]["segment_fraction"] = segment_fraction(prepared.ctx.space, settings.resolution)
     return report
@@ -312,7 +312,7 @@ def _warm_up(model: RobotModel, spheres: tuple[SphereModel, SphereModel | None],
     from prehensile.planning import RRTConnectSettings, rrt_connect
 
     start = time.perf_counter()
-    prepared = _Problem(model, spheres, problem, settings)
+    prepared = PreparedProblem(model, spheres, problem, settings)
     budget = RRTConnectSettings(time_budget_s=settings.time_budget_s)
     rrt_connect(prepared.ctx, prepared.q_start, prepared.q_goal, budget)
     log.info("warm-up (compilation) took %.2f s", time.perf_counter() - start)
