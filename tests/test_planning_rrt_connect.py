@@ -14,7 +14,7 @@ from prehensile.kinematics.forward import forward_kinematics
 from prehensile.model.builder import JointSpec, LinkSpec, build_model
 from prehensile.model.geometry import Box, Capsule, Geometry, Sphere
 from prehensile.planning import (
-    AttachedObject, PlanningContext, PlanStatus, RRTConnectSettings, rrt_connect, shortcut,
+    AttachedObject, PlanningContext, PlanStatus, RRTConnectSearch, RRTConnectSettings, rrt_connect, shortcut,
 )
 from prehensile.planning.context import ball_joint_weights
 from prehensile.spatial import make_pose
@@ -139,6 +139,26 @@ def test_goal_set_reports_the_goal_reached(arm):
     result = rrt_connect(ctx, start, goals, FAST, np.random.default_rng(2))
     assert result.goal_index in (1, 2)
     _check_result(ctx, result, start, goals[result.goal_index])
+
+
+def test_search_resumes_its_trees_and_takes_goals_added_later(arm):
+    model, spheres = arm
+    # the wall of the infeasible problem above: from +x the arm cannot reach -x
+    wall = _box("wall", [0.75, 0.0, 0.1], [1.1, 0.02, 0.6])
+    ctx = PlanningContext(model, [wall], spheres=spheres)
+    start = np.array([0.8, 0.0, 0.0])
+    search = RRTConnectSearch(ctx, start, RRTConnectSettings(escape=False), np.random.default_rng(3))
+    assert search.solve(0.1).status is PlanStatus.INVALID_GOAL  # no goal yet
+    search.add_goals(np.array([-0.8, 0.0, 0.0]))  # behind the wall
+    first = search.solve(0.05)
+    second = search.solve(0.05)
+    assert first.status is second.status is PlanStatus.TIMEOUT
+    assert second.stats.nodes > first.stats.nodes  # the same trees grew on
+    reachable = np.array([1.5, 0.5, -0.5])
+    search.add_goals(reachable)
+    result = search.solve(2.0)
+    assert result.goal_index == 1  # rows count over every goal added
+    _check_result(ctx, result, start, reachable)
 
 
 def test_attached_object_is_carried_around_obstacles(arm):

@@ -5,10 +5,10 @@ from prehensile.planning.certify import CertifyReport, certify_path
 from prehensile.planning.context import AttachedObject, PlanningContext
 from prehensile.planning.cspace import ConfigurationSpace
 from prehensile.planning.result import PlanResult, PlanStats, PlanStatus
-from prehensile.planning.rrt_connect import RRTConnectSettings, rrt_connect
+from prehensile.planning.rrt_connect import RRTConnectSearch, RRTConnectSettings, rrt_connect
 from prehensile.planning.shortcut import shortcut
 
 __all__ = [
     "AttachedObject", "CertifyReport", "ConfigurationSpace", "PlanResult", "PlanStats", "PlanStatus",
-    "PlanningContext", "RRTConnectSettings", "certify_path", "rrt_connect", "shortcut",
+    "PlanningContext", "RRTConnectSearch", "RRTConnectSettings", "certify_path", "rrt_connect", "shortcut",
 ]

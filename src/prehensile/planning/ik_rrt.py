@@ -3,11 +3,10 @@
 Vahrenkamp 2011 §4.2-4.4 (Alg. 16, 17). The goal is a workspace set (grasps of an object);
 goal configurations are sampled by a randomized IK *during* planning and all become roots of
 the goal tree of a bidirectional search. Here the bidirectional search is the compiled
-:func:`~prehensile.planning.rrt_connect.rrt_connect` with the goal configurations found so far
-as its goal set; between rounds new IK samples join the set and the round's budget doubles.
-The trees are rebuilt each round rather than kept (a compiled round costs well under a
-millisecond on typical problems, less than keeping Python-side trees would); as in the
-thesis, the search is probabilistically complete when the IK sampler is.
+RRT-Connect (:class:`~prehensile.planning.rrt_connect.RRTConnectSearch`): rounds of IK
+sampling and search alternate, each new IK sample joins the goal tree as a root, the trees
+are kept from round to round and the round's budget doubles. As in the thesis, the search is
+probabilistically complete when the IK sampler is.
 
 The goal samplers: :func:`grasp_sampler` (one arm, a grasp set: IK-RRT),
 :func:`dual_arm_sampler` (both arms, sampled hip: bimanual IK-RRT, Alg. 17) and
@@ -34,7 +33,7 @@ from prehensile.ik.reach import ReachSamples, reach_samples
 from prehensile.kinematics.forward import forward_kinematics
 from prehensile.planning.context import PlanningContext
 from prehensile.planning.result import PlanResult, PlanStats, PlanStatus
-from prehensile.planning.rrt_connect import RRTConnectSettings, rrt_connect
+from prehensile.planning.rrt_connect import RRTConnectSearch, RRTConnectSettings
 from prehensile.spatial.transforms import invert
 
 # a goal sampler draws one goal configuration (dof,) or None, and what it reached (grasp
@@ -50,7 +49,8 @@ class IKRRTSettings:
         time_budget_s: total budget (s), IK sampling included.
         ik_budget_s: budget of one IK sample (s).
         first_round_s: search budget of the first round (s); it doubles every round.
-        rrt: settings of the bidirectional search (shortcutting, certification, step).
+        rrt: settings of the bidirectional search (shortcutting, certification, step; its
+            time budget is not used).
     """
 
     time_budget_s: float = 5.0
@@ -62,8 +62,10 @@ class IKRRTSettings:
 class _Search:
     """One IK-RRT: goal configurations found so far and the next round's budget."""
 
-    def __init__(self, ctx: PlanningContext, q_start: np.ndarray, sampler: GoalSampler, settings: IKRRTSettings) -> None:
-        self.ctx, self.q_start, self.sampler, self.settings = ctx, q_start, sampler, settings
+    def __init__(self, ctx: PlanningContext, q_start: np.ndarray, sampler: GoalSampler, settings: IKRRTSettings,
+                 rng: np.random.Generator) -> None:
+        self.ctx, self.sampler, self.settings = ctx, sampler, settings
+        self.search = RRTConnectSearch(ctx, q_start, settings.rrt, rng)
         self.goals: list[np.ndarray] = []
         self.infos: list[dict] = []
         self.round_s = settings.first_round_s
@@ -76,11 +78,11 @@ class _Search:
         if q is not None and bool(self.ctx.is_valid(q)):
             self.goals.append(q)
             self.infos.append(info)
+            self.search.add_goals(q)
         remaining = deadline - time.perf_counter()
         if not self.goals or remaining <= 0:
             return None
-        settings = dataclasses.replace(self.settings.rrt, time_budget_s=min(self.round_s, remaining))
-        result = rrt_connect(self.ctx, self.q_start, np.array(self.goals), settings=settings, rng=rng)
+        result = self.search.solve(min(self.round_s, remaining))
         self.round_s *= 2.0
         s = result.stats
         self.iterations += s.iterations
@@ -128,10 +130,10 @@ def multi_eef_rrt(ctx: PlanningContext | dict[str, PlanningContext], q_start: np
     deadline = start + settings.time_budget_s
     rng = np.random.default_rng(rng)
     contexts = ctx if isinstance(ctx, dict) else {name: ctx for name in samplers}
-    searches = {name: _Search(contexts[name], q_start, sampler, settings) for name, sampler in samplers.items()}
-    for name, search in searches.items():
-        if not bool(search.ctx.is_valid(q_start)):
+    for name in samplers:
+        if not bool(contexts[name].is_valid(q_start)):
             return PlanResult(PlanStatus.INVALID_START, np.zeros((0, len(q_start))), PlanStats(), end_effector=name)
+    searches = {name: _Search(contexts[name], q_start, sampler, settings, rng) for name, sampler in samplers.items()}
     while time.perf_counter() < deadline:
         for name, search in searches.items():
             result = search.step(rng, deadline)

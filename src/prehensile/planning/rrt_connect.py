@@ -6,8 +6,9 @@ checks with the sphere model (:func:`~prehensile.planning.kernels.motion_free`).
 iteration one tree extends one step toward a uniform sample, stepping from its nearest node
 *toward* the sample (the thesis prints Alg. 1 line 6 reversed), and the other tree connects
 toward the new node by repeated steps until it reaches it or is blocked; then the trees swap.
-Every goal of a goal set is a root of the goal tree. The direct edges between the roots are
-tried first.
+Every goal of a goal set is a root of the goal tree; goals can join between runs
+(:class:`RRTConnectSearch`, for IK-RRT). The direct edges from the start to each goal are tried
+first.
 
 Edges are checked lazily (Bohlin & Kavraki 2000; the lazy checking of Vahrenkamp 2011 C.2):
 a new edge gets ``eager_checks`` clearance evaluations (its end first, then bisection, which
@@ -51,8 +52,9 @@ from prehensile.planning.shortcut import shortcut
 RUNNING, FOUND, FULL = 0, 1, 2  # kernel results
 _TRAPPED, _ADVANCED, _REACHED, _NO_ROOM = 0, 1, 2, 3  # extension results
 _CHECKED, _DEAD = 1, 2  # node flags: edge from the parent fully checked; cut off the tree
-# counters: clearance evaluations, iterations, tree sizes, started, path length, goal root
-CHECKS, ITERATIONS, SIZE, STARTED, PATH_LENGTH, GOAL_ROOT = 0, 1, 2, 4, 5, 6
+# counters: clearance evaluations, iterations, tree sizes, start nodes, path length, goal root,
+# first goal node whose direct edges are not tried yet
+CHECKS, ITERATIONS, SIZE, START_NODES, PATH_LENGTH, GOAL_ROOT, DIRECT = 0, 1, 2, 4, 5, 6, 7
 
 
 @dataclass(frozen=True)
@@ -181,22 +183,23 @@ def search(nodes, parents, flags, counters, path, rng, iterations, step, res, bu
     """Run up to ``iterations`` RRT-Connect iterations; returns RUNNING, FOUND or FULL.
 
     Tree 0 (start) and tree 1 (goals) hold nodes (2, capacity, dof) with parents (2,
-    capacity) (-1 for roots), flags (2, capacity) and sizes ``counters[SIZE:SIZE + 2]``; the
-    roots (and their escape nodes) are in place before the first call, which tries the direct
-    edges between them. Nodes flagged _DEAD are never extended (cut off, or a root that only
-    its certified escape edge leaves).
+    capacity) (-1 for roots), flags (2, capacity) and sizes ``counters[SIZE:SIZE + 2]``. The
+    first ``counters[START_NODES]`` nodes of tree 0 are the start and its escape node; goals
+    (roots with their escape nodes) may be appended to tree 1 between calls, and the direct
+    edges from the start nodes to the goal nodes from ``counters[DIRECT]`` on are tried first.
+    Nodes flagged _DEAD are never extended (cut off, or a root that only its certified escape
+    edge leaves).
     ``sample`` (dof,) holds the values of the joints not planned; ``lower``, ``upper`` (n,)
     bound the sampled joints ``idx``. ``budget``: see ``RRTConnectSettings.eager_checks``. On
     FOUND, path[:counters[PATH_LENGTH]] is the path (path rows >= 2 * capacity).
     """
-    if counters[STARTED] == 0:
-        counters[STARTED] = 1
-        for a in range(counters[SIZE]):
-            for g in range(counters[SIZE + 1]):
-                if not (flags[0, a] | flags[1, g]) & _DEAD and motion_free(
-                        nodes[0, a], nodes[1, g], res, checker, scratch, motion, counters, NO_LIMIT) == FREE:
-                    _write_path(nodes, parents, counters, a, g, False, path)
-                    return FOUND
+    first, counters[DIRECT] = counters[DIRECT], counters[SIZE + 1]
+    for a in range(counters[START_NODES]):
+        for g in range(first, counters[SIZE + 1]):
+            if not (flags[0, a] | flags[1, g]) & _DEAD and motion_free(
+                    nodes[0, a], nodes[1, g], res, checker, scratch, motion, counters, NO_LIMIT) == FREE:
+                _write_path(nodes, parents, counters, a, g, False, path)
+                return FOUND
     for _ in range(iterations):
         t = counters[ITERATIONS] % 2
         counters[ITERATIONS] += 1
@@ -224,20 +227,28 @@ def search(nodes, parents, flags, counters, path, rng, iterations, step, res, bu
 
 
 class _Trees:
-    """Tree arrays for :func:`search`, doubled when full; built from (q, parent, flags) lists."""
+    """Tree arrays for :func:`search`, doubled when full."""
 
-    def __init__(self, start_nodes: list, goal_nodes: list, capacity: int) -> None:
-        dof = len(start_nodes[0][0])
-        capacity = max(capacity, len(start_nodes), len(goal_nodes))
+    def __init__(self, start_nodes: list, capacity: int, dof: int) -> None:
         self.nodes = np.empty((2, capacity, dof))
         self.parents = np.full((2, capacity), -1, dtype=np.int64)
         self.flags = np.zeros((2, capacity), dtype=np.int64)
         self.path = np.empty((2 * capacity, dof))
         self.counters = np.zeros(8, dtype=np.int64)
-        for t, tree in enumerate((start_nodes, goal_nodes)):
-            for i, (q, parent, flags) in enumerate(tree):
-                self.nodes[t, i], self.parents[t, i], self.flags[t, i] = q, parent, flags
-            self.counters[SIZE + t] = len(tree)
+        self.append(0, start_nodes)
+        self.counters[START_NODES] = len(start_nodes)
+
+    def append(self, t: int, tree_nodes: list) -> int:
+        """Append (q, parent, flags) nodes to tree t, parents counted from the first of them;
+        returns the index of the first."""
+        first = int(self.counters[SIZE + t])
+        while first + len(tree_nodes) > self.nodes.shape[1]:
+            self.grow(2 * self.nodes.shape[1])
+        for i, (q, parent, flags) in enumerate(tree_nodes):
+            self.nodes[t, first + i], self.flags[t, first + i] = q, flags
+            self.parents[t, first + i] = first + parent if parent >= 0 else -1
+        self.counters[SIZE + t] = first + len(tree_nodes)
+        return first
 
     def grow(self, limit: int) -> bool:
         capacity = self.nodes.shape[1]
@@ -252,58 +263,187 @@ class _Trees:
         return True
 
 
-def _search(ctx: PlanningContext, roots: tuple[list, list], settings: RRTConnectSettings, state: np.ndarray,
-            res: float, deadline: float) -> tuple[np.ndarray | None, int, np.ndarray]:
-    """One search until ``deadline`` (perf_counter s); (path or None, goal root, counters)."""
-    space = ctx.space
-    trees = _Trees(*roots, min(1024, settings.max_nodes))
-    work = (space.lower, space.upper, roots[0][0][0].copy(), ctx.spheres.data, ctx.scratch, ctx.motion_arrays(res))
-    chunk = 128
-    while True:
-        begun, before = time.perf_counter(), trees.counters[ITERATIONS]
-        code = search(trees.nodes, trees.parents, trees.flags, trees.counters, trees.path, state, chunk, settings.step,
-                      res, settings.eager_checks, space.indices, space.weights, *work)
-        now = time.perf_counter()
-        if code == FOUND:
-            n = trees.counters[PATH_LENGTH]
-            return trees.path[:n].copy(), int(trees.counters[GOAL_ROOT]), trees.counters
-        if code == FULL and not trees.grow(settings.max_nodes) or now >= deadline:
-            return None, -1, trees.counters
-        per_iteration = (now - begun) / max(trees.counters[ITERATIONS] - before, 1)
-        # a quarter of the time left, growing at most twofold (iterations slow down as trees grow)
-        chunk = int(np.clip(0.25 * (deadline - now) / max(per_iteration, 1e-7), 1, 2 * chunk))
-
-
-def _roots(ctx: PlanningContext, start: np.ndarray, goals: np.ndarray, settings: RRTConnectSettings,
-           rng: np.random.Generator) -> tuple[list, list, np.ndarray] | PlanStatus:
-    """Tree roots [(q, parent, flags)] of the start and the usable goals, with their escape
-    nodes, and the goal rows of the goal tree's roots; or INVALID_START / INVALID_GOAL."""
-    both = np.vstack([start, goals])
-    inside = ctx.model.within_limits(both)
-    valid = inside & ctx.spheres.is_free(both)
-    tight = inside & (ctx.spheres.clearance(both, ctx.resolution, self_pairs=False) < 0.5 * ctx.resolution)
-    trees, rows = ([], []), []
-    for i, q in enumerate(both):
-        tree, toward = (trees[0], goals[0]) if i == 0 else (trees[1], start)
+def _endpoints(ctx: PlanningContext, qs: np.ndarray, toward: np.ndarray, settings: RRTConnectSettings,
+               rng: np.random.Generator) -> list[list | None]:
+    """Per configuration of qs (k, dof): its tree nodes [(q, -1, flags)] plus, if it needs one,
+    its certified escape node [(escape, 0, _CHECKED)] (moving toward ``toward`` (k, dof)); None
+    if it is unusable (outside the limits, or colliding for the balls without an escape)."""
+    inside = ctx.model.within_limits(qs)
+    valid = inside & ctx.spheres.is_free(qs)
+    tight = inside & (ctx.spheres.clearance(qs, ctx.resolution, self_pairs=False) < 0.5 * ctx.resolution)
+    out: list[list | None] = []
+    for i, q in enumerate(qs):
         escape = None
         if settings.escape and inside[i] and (tight[i] or not valid[i]):
-            escape = certified_escape(ctx, q, toward, rng, 0.5 * ctx.resolution)
+            escape = certified_escape(ctx, q, toward[i], rng, 0.5 * ctx.resolution)
         if not valid[i] and escape is None:
-            if i == 0:
-                return PlanStatus.INVALID_START
+            out.append(None)
             continue
-        tree.append((q, -1, 0 if valid[i] else _DEAD))
-        if escape is not None:
-            tree.append((escape, len(tree) - 1, _CHECKED))
-        if i > 0:
-            rows.append(i - 1)
-    if not rows:
-        return PlanStatus.INVALID_GOAL
-    # roots first: move the goal tree's escape nodes behind every root
-    order = sorted(range(len(trees[1])), key=lambda k: trees[1][k][1] >= 0)
-    renumber = {old: new for new, old in enumerate(order)}
-    goal_nodes = [(q, renumber[p] if p >= 0 else -1, f) for q, p, f in (trees[1][k] for k in order)]
-    return trees[0], goal_nodes, np.array(rows)
+        out.append([(q, -1, 0 if valid[i] else _DEAD)] + ([] if escape is None else [(escape, 0, _CHECKED)]))
+    return out
+
+
+class RRTConnectSearch:
+    """An RRT-Connect query whose trees persist: goals can be added and the search resumed.
+
+    :func:`rrt_connect` is one :meth:`add_goals` and one :meth:`solve`. IK-RRT adds each goal
+    its IK sampler finds and resumes the same trees (Vahrenkamp 2011 Alg. 16). A path that
+    fails the exact certification makes the search start over (new trees in the refined
+    context, or at half the resolution; see :class:`RRTConnectSettings`).
+
+    Args:
+        ctx: the planning context.
+        q_start: (dof,) start configuration (rad or m).
+        settings: :class:`RRTConnectSettings` (its time budget is not used: see :meth:`solve`).
+        rng: random source; ``np.random.default_rng(0)`` if None. The same seed and the same
+            calls give the same path.
+    """
+
+    def __init__(self, ctx: PlanningContext, q_start: np.ndarray, settings: RRTConnectSettings = RRTConnectSettings(),
+                 rng: np.random.Generator | None = None) -> None:
+        started = time.perf_counter()
+        self.ctx, self.settings = ctx, settings
+        self.rng = np.random.default_rng(0) if rng is None else rng
+        model = ctx.model
+        self.start = model.check_configuration(q_start, "q_start")
+        if self.start.shape != (model.dof,):
+            raise PrehensileError(f"rrt_connect: q_start must be ({model.dof},), got {self.start.shape}")
+        self.goals = np.zeros((0, model.dof))
+        self.context, self.res, self.refined = ctx, ctx.resolution, set()
+        self.state = rng_state(self.rng)
+        self.trees: _Trees | None = None
+        self.start_status: PlanStatus | None = None
+        self.goal_row: dict[int, int] = {}  # goal tree root node -> row of self.goals
+        self.escapes = 0  # certified escape nodes in the trees
+        self._setup_s = time.perf_counter() - started  # counted into the next solve's search time
+
+    def add_goals(self, q_goals: np.ndarray) -> None:
+        """Add a goal (dof,) or goals (k, dof); the joints not planned must equal the start's."""
+        started = time.perf_counter()
+        model, space = self.ctx.model, self.ctx.space
+        goals = model.check_configuration(q_goals, "q_goal")
+        if goals.ndim > 2 or goals.shape[-1] != model.dof:
+            raise PrehensileError(f"rrt_connect: q_goal must be ({model.dof},) or (k, {model.dof}), got {goals.shape}")
+        goals = goals.reshape(-1, model.dof)
+        fixed = np.setdiff1d(np.arange(model.dof), space.indices)
+        if np.any(np.abs(goals[:, fixed] - self.start[fixed]) > 1e-9):
+            raise PrehensileError("rrt_connect: goal and start differ in joints that are not planned "
+                                  f"({', '.join(model.joint_names[i] for i in fixed)})")
+        first = len(self.goals)
+        self.goals = np.vstack([self.goals, goals])
+        if self.trees is not None:
+            self._append_goals(first)
+        self._setup_s += time.perf_counter() - started
+
+    def _append_goals(self, first: int) -> None:
+        """Put goals[first:] (with their escape nodes) into the goal tree."""
+        goals = self.goals[first:]
+        self._add_goal_nodes(first, _endpoints(self.context, goals, np.broadcast_to(self.start, goals.shape),
+                                               self.settings, self.rng))
+
+    def _add_goal_nodes(self, first: int, goal_nodes: list) -> None:
+        for row, nodes in enumerate(goal_nodes, first):
+            if nodes is not None:
+                self.goal_row[self.trees.append(1, nodes)] = row
+                self.escapes += len(nodes) - 1
+
+    def _build_trees(self) -> None:
+        """New trees in the current context: the start (and its escape) and every goal."""
+        self.goal_row, self.trees = {}, None
+        qs = np.vstack([self.start, self.goals])
+        toward = np.vstack([self.goals[:1] if len(self.goals) else self.start[None],
+                            np.broadcast_to(self.start, self.goals.shape)])
+        start, *goal_nodes = _endpoints(self.context, qs, toward, self.settings, self.rng)
+        self.start_status = PlanStatus.INVALID_START if start is None else None
+        if start is not None:
+            self.trees = _Trees(start, min(1024, self.settings.max_nodes), self.ctx.model.dof)
+            self.escapes = len(start) - 1
+            self._add_goal_nodes(0, goal_nodes)
+
+    def _start_over(self, report: CertifyReport) -> None:
+        """After a path failed certification: new trees, with covering balls on the links that
+        collided (:meth:`PlanningContext.refined`), else at half the resolution."""
+        self.refined |= set(report.colliding_links)
+        finer = self.ctx.refined(self.refined)
+        self.context, self.res = (self.context, 0.5 * self.res) if finer is None or finer is self.context \
+            else (finer, self.res)
+        self.trees = None
+
+    def _run(self, deadline: float) -> tuple[np.ndarray | None, int]:
+        """Resume the search until ``deadline`` (perf_counter s); (path or None, goal root)."""
+        space, trees, settings = self.context.space, self.trees, self.settings
+        work = (space.lower, space.upper, self.start.copy(), self.context.spheres.data, self.context.scratch,
+                self.context.motion_arrays(self.res))
+        chunk = 128
+        while True:
+            begun, before = time.perf_counter(), trees.counters[ITERATIONS]
+            code = search(trees.nodes, trees.parents, trees.flags, trees.counters, trees.path, self.state, chunk,
+                          settings.step, self.res, settings.eager_checks, space.indices, space.weights, *work)
+            now = time.perf_counter()
+            if code == FOUND:
+                return trees.path[:trees.counters[PATH_LENGTH]].copy(), int(trees.counters[GOAL_ROOT])
+            if code == FULL and not trees.grow(settings.max_nodes) or now >= deadline:
+                return None, -1
+            per_iteration = (now - begun) / max(trees.counters[ITERATIONS] - before, 1)
+            # a quarter of the time left, growing at most twofold (iterations slow down as trees grow)
+            chunk = int(np.clip(0.25 * (deadline - now) / max(per_iteration, 1e-7), 1, 2 * chunk))
+
+    def solve(self, time_budget_s: float) -> PlanResult:
+        """Search for up to ``time_budget_s`` (s) more, from where the last call stopped.
+
+        Returns:
+            :class:`PlanResult` with this call's statistics (see :func:`rrt_connect`).
+        """
+        t0 = time.perf_counter() - self._setup_s
+        self._setup_s = 0.0
+        deadline = t0 + time_budget_s
+        dof, settings = self.ctx.model.dof, self.settings
+        empty = np.zeros((0, dof))
+        totals = dict(iterations=0, nodes=0, collision_checks=0, plan_time_s=0.0, simplify_time_s=0.0,
+                      certify_time_s=0.0)
+        checks = np.zeros(1, dtype=np.int64)
+        report: CertifyReport | None = None
+        for attempt in range(settings.certify_retries + 1):
+            begun = time.perf_counter()
+            if self.trees is None and self.start_status is None:
+                self._build_trees()
+            if self.trees is None or not self.goal_row:
+                status = self.start_status or PlanStatus.INVALID_GOAL
+                if report is None:
+                    return PlanResult(status, empty, PlanStats(plan_time_s=time.perf_counter() - t0))
+                break
+            before = self.trees.counters.copy()
+            path, root = self._run(deadline)
+            counters = self.trees.counters - before
+            totals["plan_time_s"] += time.perf_counter() - (t0 if attempt == 0 else begun)
+            totals["iterations"] += int(counters[ITERATIONS])
+            totals["nodes"] = int(self.trees.counters[SIZE] + self.trees.counters[SIZE + 1])
+            totals["collision_checks"] += int(counters[CHECKS])
+            if path is None:
+                status = PlanStatus.TIMEOUT if report is None else PlanStatus.CERTIFICATION_FAILED
+                return PlanResult(status, empty, PlanStats(**totals), info={"attempts": attempt + 1, "certify": report})
+            if settings.shortcut:
+                begun = time.perf_counter()
+                path = shortcut(self.context, path, self.rng, settings.shortcut_iterations, settings.shortcut_time_s,
+                                self.res, checks)
+                totals["simplify_time_s"] += time.perf_counter() - begun
+            space = self.context.space
+            info = {"attempts": attempt + 1, "length": space.path_length(path[:, space.indices]),
+                    "escapes": self.escapes, "refined": tuple(sorted(self.refined))}
+            if settings.certify:
+                report = certify_path(self.context, path)
+                totals["certify_time_s"] += report.time_s
+                info["certify"] = report
+            if report is None or report.ok:
+                totals["collision_checks"] += int(checks[0])
+                return PlanResult(PlanStatus.SUCCESS, path, PlanStats(**totals), goal_index=self.goal_row[root],
+                                  info=info)
+            self._start_over(report)
+            if time.perf_counter() >= deadline:
+                break
+        totals["collision_checks"] += int(checks[0])
+        return PlanResult(PlanStatus.CERTIFICATION_FAILED, empty, PlanStats(**totals),
+                          info={"attempts": attempt + 1, "certify": report})
 
 
 def rrt_connect(ctx: PlanningContext, q_start: np.ndarray, q_goal: np.ndarray,
@@ -329,64 +469,6 @@ def rrt_connect(ctx: PlanningContext, q_start: np.ndarray, q_goal: np.ndarray,
         the budget ran out (or every tree filled up); CERTIFICATION_FAILED when every path
         found failed the exact check.
     """
-    t0 = time.perf_counter()
-    rng = np.random.default_rng(0) if rng is None else rng
-    model, space = ctx.model, ctx.space
-    start = model.check_configuration(q_start, "q_start")
-    goals = model.check_configuration(q_goal, "q_goal")
-    if start.shape != (model.dof,) or goals.ndim > 2:
-        raise PrehensileError(f"rrt_connect: q_start must be ({model.dof},), q_goal ({model.dof},) or (k, {model.dof})")
-    goals = goals.reshape(-1, model.dof)
-    fixed = np.setdiff1d(np.arange(model.dof), space.indices)
-    if np.any(np.abs(goals[:, fixed] - start[fixed]) > 1e-9):
-        raise PrehensileError("rrt_connect: goal and start differ in joints that are not planned "
-                              f"({', '.join(model.joint_names[i] for i in fixed)})")
-    empty = np.zeros((0, model.dof))
-    deadline = t0 + settings.time_budget_s
-    totals = dict(iterations=0, nodes=0, collision_checks=0, plan_time_s=0.0, simplify_time_s=0.0, certify_time_s=0.0)
-    checks = np.zeros(1, dtype=np.int64)
-    report: CertifyReport | None = None
-    state, searched, context, res, refined = None, None, ctx, ctx.resolution, set()
-    for attempt in range(settings.certify_retries + 1):
-        begun = time.perf_counter()
-        if report is not None:  # the last path failed certification
-            refined |= set(report.colliding_links)
-            finer = ctx.refined(refined)
-            context, res = (context, 0.5 * res) if finer is None or finer is context else (finer, res)
-        if context is not searched:
-            roots = _roots(context, start, goals, settings, rng)
-            if isinstance(roots, PlanStatus):
-                if report is None:
-                    return PlanResult(roots, empty, PlanStats(plan_time_s=time.perf_counter() - t0))
-                break
-            *roots, goal_rows = roots
-            searched = context
-        state = rng_state(rng) if state is None else state
-        path, root, counters = _search(context, roots, settings, state, res, deadline)
-        totals["plan_time_s"] += time.perf_counter() - (t0 if attempt == 0 else begun)
-        totals["iterations"] += int(counters[ITERATIONS])
-        totals["nodes"] += int(counters[SIZE] + counters[SIZE + 1])
-        totals["collision_checks"] += int(counters[CHECKS])
-        if path is None:
-            status = PlanStatus.TIMEOUT if report is None else PlanStatus.CERTIFICATION_FAILED
-            return PlanResult(status, empty, PlanStats(**totals), info={"attempts": attempt + 1, "certify": report})
-        if settings.shortcut:
-            begun = time.perf_counter()
-            path = shortcut(context, path, rng, settings.shortcut_iterations, settings.shortcut_time_s, res, checks)
-            totals["simplify_time_s"] += time.perf_counter() - begun
-        escapes = sum(flags == _CHECKED for tree in roots for _, _, flags in tree)
-        info = {"attempts": attempt + 1, "length": space.path_length(path[:, space.indices]), "escapes": escapes,
-                "refined": tuple(sorted(refined))}
-        if settings.certify:
-            report = certify_path(context, path)
-            totals["certify_time_s"] += report.time_s
-            info["certify"] = report
-        if report is None or report.ok:
-            totals["collision_checks"] += int(checks[0])
-            return PlanResult(PlanStatus.SUCCESS, path, PlanStats(**totals), goal_index=int(goal_rows[root]), info=info)
-        if time.perf_counter() >= deadline:
-            break
-    totals["collision_checks"] += int(checks[0])
-    return PlanResult(PlanStatus.CERTIFICATION_FAILED, empty, PlanStats(**totals),
-                      info={"attempts": attempt + 1, "certify": report})
-
+    query = RRTConnectSearch(ctx, q_start, settings, rng)
+    query.add_goals(q_goal)
+    return query.solve(settings.time_budget_s)
