@@ -60,13 +60,13 @@ class IKRRTSettings:
 
 
 class _Search:
-    """One IK-RRT: goal configurations found so far and the next round's budget."""
+    """One IK-RRT: the search, what each goal configuration found so far reached, and the next
+    round's budget."""
 
     def __init__(self, ctx: PlanningContext, q_start: np.ndarray, sampler: GoalSampler, settings: IKRRTSettings,
                  rng: np.random.Generator) -> None:
         self.ctx, self.sampler, self.settings = ctx, sampler, settings
         self.search = RRTConnectSearch(ctx, q_start, settings.rrt, rng)
-        self.goals: list[np.ndarray] = []
         self.infos: list[dict] = []
         self.round_s = settings.first_round_s
         self.iterations = self.nodes = self.checks = 0
@@ -76,11 +76,10 @@ class _Search:
         """Sample one goal, then search a round; a finished PlanResult, or None to go on."""
         q, info = self.sampler(rng, min(self.settings.ik_budget_s, max(deadline - time.perf_counter(), 0.0)))
         if q is not None and bool(self.ctx.is_valid(q)):
-            self.goals.append(q)
             self.infos.append(info)
             self.search.add_goals(q)
         remaining = deadline - time.perf_counter()
-        if not self.goals or remaining <= 0:
+        if not self.infos or remaining <= 0:
             return None
         result = self.search.solve(min(self.round_s, remaining))
         self.round_s *= 2.0
@@ -95,10 +94,10 @@ class _Search:
             return None
         goal = self.infos[result.goal_index] if result.success else {}
         return PlanResult(result.status, result.path, self.stats(), result.goal_index,
-                          info={"goal": goal, "goal_configurations": len(self.goals)})
+                          info={"goal": goal, "goal_configurations": len(self.infos)})
 
     def stats(self, total_s: float | None = None) -> PlanStats:
-        return PlanStats(self.iterations, self.nodes, self.checks, len(self.goals),
+        return PlanStats(self.iterations, self.nodes, self.checks, len(self.infos),
                          self.search_s if total_s is None else total_s, self.simplify_s, self.certify_s)
 
 
@@ -140,9 +139,9 @@ def multi_eef_rrt(ctx: PlanningContext | dict[str, PlanningContext], q_start: np
             if result is not None:  # search time includes the IK sampling of every hand
                 spent = time.perf_counter() - start - result.stats.simplify_time_s - result.stats.certify_time_s
                 stats = dataclasses.replace(result.stats, plan_time_s=spent,
-                                            ik_solutions=sum(len(s.goals) for s in searches.values()))
+                                            ik_solutions=sum(len(s.infos) for s in searches.values()))
                 return dataclasses.replace(result, stats=stats, end_effector=name)
-    found = sum(len(s.goals) for s in searches.values())
+    found = sum(len(s.infos) for s in searches.values())
     status = PlanStatus.TIMEOUT if found else PlanStatus.NO_GOAL_CONFIGURATION
     first = next(iter(searches.values()))
     stats = dataclasses.replace(first.stats(time.perf_counter() - start), ik_solutions=found)
