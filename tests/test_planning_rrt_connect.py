@@ -94,6 +94,18 @@ def test_direct_edge_is_taken_when_free(arm):
     assert len(result.path) == 2 and result.stats.iterations == 0
 
 
+def test_segments_shorter_than_half_a_step_are_decided_by_their_ends(arm):
+    model, spheres = arm
+    wall = _box("wall", [0.55, 0.25, 0.1], [0.1, 0.3, 0.3])
+    ctx = PlanningContext(model, [wall], spheres=spheres, resolution=0.01)
+    free = np.array([0.0, 0.2, 0.0])
+    for delta in (1e-5, 1e-3, 1e-2):  # well under, near and over half a step of the tip
+        assert ctx.check_motion(free, free + [delta, 0, 0])
+    blocked = np.array([0.75, 0.0, 0.0])  # through the wall
+    assert not ctx.is_valid(blocked)
+    assert not ctx.check_motion(free, blocked) and not ctx.check_motion(blocked, blocked + [1e-5, 0, 0])
+
+
 def test_same_seed_gives_the_same_path(arm):
     model, spheres = arm
     ctx = PlanningContext(model, [_box("wall", [0.55, 0.25, 0.1], [0.1, 0.3, 0.3])], spheres=spheres)

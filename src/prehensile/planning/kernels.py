@@ -131,9 +131,9 @@ def motion_free(qa, qb, res, checker, scratch, motion, counters, budget):
     if budget < 2:
         return UNDECIDED
     half = 0.5 * res / longest
-    hi = 1.0 - max(cover_b, half)
+    hi = 1.0 - max(cover_b, half)  # negative on a segment shorter than half a step: qa is tested plainly
     counters[0] += 1
-    cover_a = SK.clearance(qa, checker, scratch, min(hi, _CAP), scales)
+    cover_a = SK.clearance(qa, checker, scratch, min(max(hi, 0.0), _CAP), scales)
     if cover_a < 0.0:
         return BLOCKED
     lo = max(cover_a, half)
