@@ -16,7 +16,9 @@ from prehensile.model.geometry import Box, Capsule, Geometry, Sphere
 from prehensile.planning import (
     AttachedObject, PlanningContext, PlanStatus, RRTConnectSearch, RRTConnectSettings, rrt_connect, shortcut,
 )
+from prehensile.collision import sphere_kernels as SK
 from prehensile.planning.context import ball_joint_weights
+from prehensile.planning.kernels import _scales
 from prehensile.spatial import make_pose
 
 from conftest import MBM, require_shared
@@ -292,6 +294,45 @@ def test_ball_joint_weights_bound_the_speed_of_every_ball(axes):
                 moved = np.linalg.norm((points @ after[link][:3, :3].T + after[link][:3, 3])
                                        - (points @ before[link][:3, :3].T + before[link][:3, 3]), axis=1)
                 assert moved.max() / 1e-7 <= W[s, k] * (1 + 1e-5) + 1e-9
+
+
+@pytest.mark.parametrize("axes", [("z", "z", "z"), ("z", "y", "x")])
+def test_bubbles_never_pass_a_segment_that_dense_sampling_finds_colliding(axes):
+    """At a tiny resolution the check rests on the free bubbles alone (world and self pairs)."""
+    model = _arm(axes)
+    spheres = generate_sphere_model(model, cache=False)
+    ctx = PlanningContext(model, [_box("wall", [0.55, 0.25, 0.1], [0.1, 0.3, 0.3])], spheres=spheres,
+                          resolution=1e-5)
+    rng = np.random.default_rng(3)
+    valid = [q for q in model.random_configurations(rng, 200) if ctx.is_valid(q)]
+    verdicts = []
+    for a, b in zip(valid[:-1], valid[1:]):
+        b = a + rng.uniform(0.1, 1.0) * (b - a)
+        verdicts.append(ctx.check_motion(a, b))
+        if verdicts[-1]:
+            dense = a + np.linspace(0, 1, 500)[:, None] * (b - a)
+            assert np.all(ctx.spheres.is_free(dense))
+    assert 10 < sum(verdicts) < len(verdicts) - 10  # both outcomes are exercised
+
+
+def test_free_bubbles_of_self_pairs_hold():
+    """On the folding arm without obstacles (only self pairs count), the bubble of q(s) on a
+    segment, s +- the scaled clearance, holds no colliding configuration."""
+    model = _arm(("y", "y", "y"))
+    ctx = PlanningContext(model, [], spheres=generate_sphere_model(model, cache=False))
+    data, motion = ctx.spheres.data, ctx.motion_arrays(ctx.resolution)
+    rng = np.random.default_rng(4)
+    qs = model.random_configurations(rng, 400)
+    blocked = 0
+    for qa, qb in zip(qs[:-1], qs[1:]):
+        _scales(qa, qb, data[9], motion)
+        s = rng.uniform()
+        bubble = SK.clearance(qa + s * (qb - qa), data, ctx.scratch, 1.0, motion[2])
+        if bubble > 0:
+            inside = np.linspace(max(s - bubble, 0.0), min(s + bubble, 1.0), 200)
+            assert np.all(ctx.spheres.is_free(qa + inside[:, None] * (qb - qa)))
+            blocked += not np.all(ctx.spheres.is_free(qa + np.linspace(0, 1, 200)[:, None] * (qb - qa)))
+    assert blocked >= 10  # segments whose bubbles had a self-collision to stay clear of
 
 
 def _mbm_setup():

@@ -117,8 +117,8 @@ def clearance(q, data, scratch, cap, scales):
     """Lower bound on the scaled clearance of the robot's balls at configuration q (dof,), capped.
 
     Returns ``min(cap, min over the tested ball pairs of distance / scale)``: a ball s against
-    an obstacle has scale ``bscale[s, 0]``, balls s and t of self pair p have scale
-    ``bscale[s, c] + bscale[t, c]`` with ``c = pcut[p]``. With a scale that bounds how far a
+    an obstacle has scale ``bscale[s]``, two balls of self pair p have scale
+    ``pscale[p, 0] + pscale[p, 1]``. With a scale that bounds how far a
     ball moves (relative to what it is tested against) per unit of a motion parameter, the
     result is how far that parameter may change before anything can touch: a "free bubble"
     (Quinlan 1995) per ball pair. With world scales 1 and pair scales 1/2 it is the clearance
@@ -135,10 +135,10 @@ def clearance(q, data, scratch, cap, scales):
     chunks ``gchunks`` (G, 2): runs of neighbouring balls ``cranges`` (C, 2) with bounding
     balls ``cbcenter`` (C, 3), ``cbradius`` (C,); groups are sorted by frame. ``gtest`` (G,)
     bool marks the groups tested against obstacles, ``pairs`` (P, 2) the group pairs tested
-    against each other. ``scales`` = (gscale (G,), pscale (P, 2), bscale (S, C'), pcut (P,)
-    int64): ``gscale[g]`` and ``pscale[p]`` must bound the scales of the group's balls (world,
-    and each side of pair p); scales must be positive (a tiny value for a ball that does not
-    move: it then only counts if it collides). ``scratch`` comes from :func:`make_scratch`.
+    against each other. ``scales`` = (gscale (G,), pscale (P, 2), bscale (S,)): ``gscale[g]``
+    must bound the world scales of the group's balls; scales must be positive (a tiny value for
+    a ball that does not move: it then only counts if it collides). ``scratch`` comes from
+    :func:`make_scratch`.
 
     Order: forward kinematics, the self pairs (links close in the chain are near in most
     configurations, so the best distance drops early and prunes most world tests), then the
@@ -148,7 +148,7 @@ def clearance(q, data, scratch, cap, scales):
     (_, fparent, fjtype, forigin, faxis, fqidx, fmult, foffset, gframe, granges, centers, radii, gbcenter, gbradius,
      gtest, gchunks, cranges, cbcenter, cbradius, otype, opose, oparam, oaabb, pairs) = data
     poses, wc, wb, wk, placed = scratch
-    gscale, pscale, bscale, pcut = scales
+    gscale, pscale, bscale = scales
     best = cap
     g = 0
     for f in range(fparent.shape[0]):
@@ -162,7 +162,7 @@ def clearance(q, data, scratch, cap, scales):
                 placed[k] = 0
             g += 1
     for p in range(pairs.shape[0]):
-        i, j, c = pairs[p, 0], pairs[p, 1], pcut[p]
+        i, j = pairs[p, 0], pairs[p, 1]
         fi, fj, both = gframe[i], gframe[j], pscale[p, 0] + pscale[p, 1]
         dx, dy, dz = wb[i, 0] - wb[j, 0], wb[i, 1] - wb[j, 1], wb[i, 2] - wb[j, 2]
         reach = best * both + gbradius[i] + gbradius[j]
@@ -184,15 +184,14 @@ def clearance(q, data, scratch, cap, scales):
                 _chunk_balls(poses, fj, centers, cranges, kj, wc, placed)
                 for s in range(cranges[ki, 0], cranges[ki, 1]):
                     dx, dy, dz = wc[s, 0] - wk[kj, 0], wc[s, 1] - wk[kj, 1], wc[s, 2] - wk[kj, 2]
-                    reach = best * (bscale[s, c] + pscale[p, 1]) + radii[s] + cbradius[kj]
+                    reach = best * both + radii[s] + cbradius[kj]
                     if dx * dx + dy * dy + dz * dz >= reach * reach:  # ball s is farther from all of chunk kj
                         continue
                     for t in range(cranges[kj, 0], cranges[kj, 1]):
                         dx, dy, dz = wc[s, 0] - wc[t, 0], wc[s, 1] - wc[t, 1], wc[s, 2] - wc[t, 2]
-                        scale = bscale[s, c] + bscale[t, c]
-                        reach = best * scale + radii[s] + radii[t]
+                        reach = best * both + radii[s] + radii[t]
                         if dx * dx + dy * dy + dz * dz < reach * reach:
-                            best = (np.sqrt(dx * dx + dy * dy + dz * dz) - radii[s] - radii[t]) / scale
+                            best = (np.sqrt(dx * dx + dy * dy + dz * dz) - radii[s] - radii[t]) / both
                             if best < 0.0:
                                 return best
     for g in range(gframe.shape[0]):
@@ -217,9 +216,9 @@ def clearance(q, data, scratch, cap, scales):
                 _chunk_balls(poses, f, centers, cranges, k, wc, placed)
                 for s in range(cranges[k, 0], cranges[k, 1]):
                     d2, grow = _core_distance2(otype, opose, oparam, o, wc[s, 0], wc[s, 1], wc[s, 2])
-                    reach = best * bscale[s, 0] + radii[s] + grow
+                    reach = best * bscale[s] + radii[s] + grow
                     if d2 < reach * reach:
-                        best = (np.sqrt(d2) - grow - radii[s]) / bscale[s, 0]
+                        best = (np.sqrt(d2) - grow - radii[s]) / bscale[s]
                         if best < 0.0:
                             return best
     return best
@@ -227,10 +226,7 @@ def clearance(q, data, scratch, cap, scales):
 
 def unit_scales(data) -> tuple:
     """Scales for :func:`clearance` that make it the clearance in metres."""
-    balls, pairs = data[11].shape[0], data[-1].shape[0]
-    bscale = np.full((balls, 2), 0.5)
-    bscale[:, 0] = 1.0
-    return (np.ones(data[13].shape[0]), np.full((pairs, 2), 0.5), bscale, np.ones(pairs, dtype=np.int64))
+    return np.ones(data[13].shape[0]), np.full((data[-1].shape[0], 2), 0.5), np.ones(data[11].shape[0])
 
 
 @njit(cache=True, fastmath=FAST)

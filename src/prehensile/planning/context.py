@@ -234,10 +234,11 @@ class PlanningContext:
         self.spheres = SphereChecker(self.collision_model, self.obstacles, self.T_world_base, self.sphere_model,
                                      self.acm)
         self.motion = self._motion_tables()
-        """(Wpath (S, D), qpath (S, D), scales, queue (Q, 2), q (dof,)) for
-        :func:`prehensile.planning.kernels.motion_free`: per ball of the sphere checker the
-        weights and variables of the moving joints on its path (root first), the scale arrays
-        of :func:`~prehensile.collision.sphere_kernels.clearance`, work arrays (see
+        """(Wball (dof, S), Wside (dof, P, 2), scales, queue (Q, 2), q (dof,)) for
+        :func:`prehensile.planning.kernels.motion_free`: per variable, the weight of each ball
+        of the sphere checker (all joints on its path) and of each side of each self pair (the
+        joints that move that side only, bounded over the side's balls), the scale arrays of
+        :func:`~prehensile.collision.sphere_kernels.clearance`, work arrays (see
         :meth:`motion_arrays`)."""
         self.scratch = SK.make_scratch(self.spheres.data)
         self.counters = np.zeros(1, dtype=np.int64)
@@ -255,22 +256,22 @@ class PlanningContext:
         order = checker.ball_order
         links = self.sphere_model.sphere_link[order]
         W = ball_joint_weights(model, links, self.sphere_model.centers[order], self.sphere_model.radii[order])
-        moving = np.isin(model.joint_type, (REVOLUTE, PRISMATIC))
-        paths = [[k for k in reversed(model.path_to_root(int(link))) if moving[k]] for link in range(model.n_links)]
-        depth = max((len(p) for p in paths), default=0)
-        Wpath, qpath = np.zeros((len(links), depth)), np.full((len(links), depth), -1, dtype=np.int64)
-        for s, link in enumerate(links):
-            path = paths[link]
-            Wpath[s, :len(path)], qpath[s, :len(path)] = W[s, path], model.joint_q_index[path]
-        group_link = checker.group_links
-        pcut = np.array([len(set(paths[group_link[i]]) & set(paths[group_link[j]])) for i, j in pairs], dtype=np.int64)
-        scales = (np.empty(len(granges)), np.empty((len(pairs), 2)), np.empty((len(links), depth + 1)), pcut)
+        moving = np.flatnonzero(np.isin(model.joint_type, (REVOLUTE, PRISMATIC)))
+        to_variables = np.zeros((model.n_links, model.dof))  # joint weights -> variable weights
+        to_variables[moving, model.joint_q_index[moving]] = 1.0
+        Wball = (W @ to_variables).T
+        group_link, above = checker.group_links, [set(model.path_to_root(i)) for i in range(model.n_links)]
+        Wside = np.zeros((model.dof, len(pairs), 2))
+        for p, pair in enumerate(pairs):
+            links_p = [group_link[g] for g in pair]
+            for side, g in enumerate(pair):
+                only = sorted(above[links_p[side]] - above[links_p[1 - side]])  # the joints moving one side only
+                Wside[:, p, side] = np.max(W[granges[g, 0]:granges[g, 1], only], axis=0, initial=0.0) \
+                    @ to_variables[only]
+        scales = (np.empty(len(granges)), np.empty((len(pairs), 2)), np.empty(len(links)))
         span = np.where(np.isfinite(model.upper - model.lower), model.upper - model.lower, 2 * np.pi)
-        reach = np.zeros(len(links))
-        for s in range(len(links)):
-            reach[s] = Wpath[s] @ np.where(qpath[s] >= 0, span[qpath[s]], 0.0)
-        self._longest = float(np.max(reach, initial=0.0))  # farthest a ball can move on any segment
-        return Wpath, qpath, scales, np.empty((0, 2)), np.empty(model.dof)
+        self._longest = float(np.max(span @ Wball, initial=0.0))  # farthest a ball can move on any segment
+        return np.ascontiguousarray(Wball), Wside, scales, np.empty((0, 2)), np.empty(model.dof)
 
     def motion_arrays(self, resolution: float) -> tuple:
         """:attr:`motion` with a bisection queue long enough for edge checks at ``resolution`` (m):

@@ -87,6 +87,8 @@ class ConfigurationSpace:
         if len(indices) == 0 or len(set(indices.tolist())) != len(indices):
             raise PrehensileError(f"ConfigurationSpace: joints must be non-empty and distinct, got {joints!r}")
         self.indices = np.ascontiguousarray(indices, dtype=np.int64)
+        self.fixed = np.setdiff1d(np.arange(model.dof), self.indices)
+        """(dof - n,) indices of the variables not planned (held at ``q_ref``)."""
         self.q_ref = model.neutral_configuration() if q_ref is None else model.check_configuration(q_ref, "q_ref").copy()
         self.lower = np.where(np.isfinite(model.lower[self.indices]), model.lower[self.indices], -np.pi)
         self.upper = np.where(np.isfinite(model.upper[self.indices]), model.upper[self.indices], np.pi)

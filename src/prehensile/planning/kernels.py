@@ -3,8 +3,8 @@ motion checks with free bubbles.
 
 Motion check (:func:`motion_free`). The segment qa -> qb is parameterised by s in [0, 1]. From
 the context's per-ball joint weights (:mod:`prehensile.planning.context`) it first bounds how
-far every ball can move over the whole segment: against the world (all joints on its path)
-and against the other link of each self pair (only the joints below their common ancestor).
+far every ball can move over the whole segment against the world (all joints on its path),
+and every link of a self pair against the other (only the joints below their common ancestor).
 The sphere kernel divides each ball-pair clearance by the sum of those bounds, so a
 configuration at s with scaled clearance c proves the whole stretch [s - c, s + c] free: no
 ball can travel farther than its distance to anything it may hit ("free bubbles", Quinlan
@@ -22,6 +22,7 @@ import numpy as np
 from numba import njit
 
 from prehensile.collision import sphere_kernels as SK
+from prehensile.kinematics.kernels import FAST
 
 _CAP = 0.25
 _TINY = 1e-12  # scale of a group that does not move on a segment: it only counts if it collides
@@ -71,33 +72,31 @@ def nearest(nodes, count, x, idx, w, flags, skip):
     return arg, best
 
 
-@njit(cache=True)
-def _scales(qa, qb, granges, pairs, motion):
+@njit(cache=True, fastmath=FAST)
+def _scales(qa, qb, granges, motion):
     """Fill the clearance scales for the segment qa -> qb; returns the farthest any ball moves (m)."""
-    Wpath, qpath, (gscale, pscale, bscale, pcut), _, _ = motion
-    depth = Wpath.shape[1]
-    for s in range(Wpath.shape[0]):  # bscale[s, c]: motion bound of ball s from the joints below the c-th
-        acc = 0.0
-        bscale[s, depth] = _TINY
-        for i in range(depth - 1, -1, -1):
-            if qpath[s, i] >= 0:
-                acc += Wpath[s, i] * abs(qb[qpath[s, i]] - qa[qpath[s, i]])
-            bscale[s, i] = max(acc, _TINY)
+    Wball, Wside, (gscale, pscale, bscale), _, _ = motion
+    bscale[:] = 0.0
+    pscale[:] = 0.0
+    for k in range(qa.shape[0]):
+        d = abs(qb[k] - qa[k])
+        if d == 0.0:  # the joints not planned
+            continue
+        for s in range(bscale.shape[0]):
+            bscale[s] += Wball[k, s] * d
+        for p in range(pscale.shape[0]):
+            pscale[p, 0] += Wside[k, p, 0] * d
+            pscale[p, 1] += Wside[k, p, 1] * d
     longest = 0.0
     for g in range(granges.shape[0]):
         m = _TINY
         for s in range(granges[g, 0], granges[g, 1]):
-            m = max(m, bscale[s, 0])
+            bscale[s] = max(bscale[s], _TINY)
+            m = max(m, bscale[s])
         gscale[g] = m
         longest = max(longest, m)
-    for p in range(pairs.shape[0]):
-        c = pcut[p]
-        for side in range(2):
-            m = _TINY
-            g = pairs[p, side]
-            for s in range(granges[g, 0], granges[g, 1]):
-                m = max(m, bscale[s, c])
-            pscale[p, side] = m
+    for p in range(pscale.shape[0]):
+        pscale[p, 0], pscale[p, 1] = max(pscale[p, 0], _TINY), max(pscale[p, 1], _TINY)
     return longest
 
 
@@ -121,7 +120,7 @@ def motion_free(qa, qb, res, checker, scratch, motion, counters, budget):
         FREE, BLOCKED, or UNDECIDED when the budget ran out first.
     """
     scales, queue, q = motion[2], motion[3], motion[4]
-    longest = _scales(qa, qb, checker[9], checker[-1], motion)
+    longest = _scales(qa, qb, checker[9], motion)
     counters[0] += 1
     cover_b = SK.clearance(qb, checker, scratch, _CAP, scales)
     if cover_b < 0.0:

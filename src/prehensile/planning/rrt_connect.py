@@ -325,7 +325,7 @@ class RRTConnectSearch:
         if goals.ndim > 2 or goals.shape[-1] != model.dof:
             raise PrehensileError(f"rrt_connect: q_goal must be ({model.dof},) or (k, {model.dof}), got {goals.shape}")
         goals = goals.reshape(-1, model.dof)
-        fixed = np.setdiff1d(np.arange(model.dof), space.indices)
+        fixed = space.fixed
         if np.any(np.abs(goals[:, fixed] - self.start[fixed]) > 1e-9):
             raise PrehensileError("rrt_connect: goal and start differ in joints that are not planned "
                                   f"({', '.join(model.joint_names[i] for i in fixed)})")

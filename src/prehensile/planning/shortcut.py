@@ -124,7 +124,7 @@ def shortcut(ctx: PlanningContext, path: np.ndarray, rng: np.random.Generator, i
     path = ctx.model.check_configuration(path, "path")
     if path.ndim != 2 or len(path) < 1:
         raise PrehensileError(f"shortcut: path must have shape (N, {ctx.model.dof}), got {path.shape}")
-    fixed = np.setdiff1d(np.arange(ctx.model.dof), ctx.space.indices)
+    fixed = ctx.space.fixed
     if len(fixed) and np.any(np.abs(path[:, fixed] - path[0, fixed]) > 1e-9):
         raise PrehensileError("shortcut: the path moves joints that are not planned in this context")
     if len(path) < 3:
