@@ -255,7 +255,8 @@ class PlanningContext:
         granges, pairs = checker.data[9], checker.data[-1]
         order = checker.ball_order
         links = self.sphere_model.sphere_link[order]
-        W = ball_joint_weights(model, links, self.sphere_model.centers[order], self.sphere_model.radii[order])
+        # a ball's distance to anything changes only as fast as its centre moves: radius 0
+        W = ball_joint_weights(model, links, self.sphere_model.centers[order], np.zeros(len(links)))
         moving = np.flatnonzero(np.isin(model.joint_type, (REVOLUTE, PRISMATIC)))
         to_variables = np.zeros((model.n_links, model.dof))  # joint weights -> variable weights
         to_variables[moving, model.joint_q_index[moving]] = 1.0

@@ -56,19 +56,24 @@ def distance(a, b, idx, w):
     return d
 
 
-@njit(cache=True)
-def nearest(nodes, count, x, idx, w, flags, skip):
-    """(index, distance) of the node among nodes[:count] (N, dof) nearest to x (dof,), leaving
-    out the nodes i with ``flags[i] & skip``; (-1, inf) if there is none."""
+@njit(cache=True, fastmath=FAST)
+def nearest(points, count, x, idx, w, work):
+    """(index, distance) of the node nearest to x (dof,) among the first ``count`` nodes, given
+    as weighted coordinates ``points`` (n, N): ``points[k, i] = w[k] * q_i[idx[k]]`` (inf for a
+    node to leave out); (-1, inf) if there is none. ``work`` (N,) is scratch.
+
+    Node after node in the inner loop, so that the scan runs in SIMD lanes.
+    """
+    for i in range(count):
+        work[i] = 0.0
+    for k in range(idx.shape[0]):
+        xk, row = w[k] * x[idx[k]], points[k]
+        for i in range(count):
+            work[i] += abs(row[i] - xk)
     best, arg = np.inf, -1
     for i in range(count):
-        if flags[i] & skip:
-            continue
-        d = 0.0
-        for k in range(idx.shape[0]):
-            d += w[k] * abs(nodes[i, idx[k]] - x[idx[k]])
-        if d < best:
-            best, arg = d, i
+        if work[i] < best:
+            best, arg = work[i], i
     return arg, best
 
 

@@ -1,7 +1,7 @@
 """Bidirectional RRT-Connect (Kuffner & LaValle 2000; Vahrenkamp 2011 ch. 2, Alg. 1-3), compiled.
 
 The whole search runs in one numba kernel: sampling, nearest neighbours (a linear scan of the
-tree's contiguous node array in the workspace-weighted metric), extension and the motion
+tree's nodes in the workspace-weighted metric, in SIMD lanes), extension and the motion
 checks with the sphere model (:func:`~prehensile.planning.kernels.motion_free`). Per
 iteration one tree extends one step toward a uniform sample, stepping from its nearest node
 *toward* the sample (the thesis prints Alg. 1 line 6 reversed), and the other tree connects
@@ -43,6 +43,7 @@ from numba import njit
 from prehensile.errors import PrehensileError
 from prehensile.planning.certify import CertifyReport, certified_escape, certify_path
 from prehensile.planning.context import PlanningContext
+from prehensile.planning.cspace import ConfigurationSpace
 from prehensile.planning.kernels import (
     BLOCKED, FREE, NO_LIMIT, distance, motion_free, nearest, rng_state, uniform,
 )
@@ -102,9 +103,23 @@ class RRTConnectSettings:
             raise PrehensileError(f"RRTConnectSettings: invalid values {self}")
 
 
+@njit(cache=True, inline="always")
+def _set_point(points, t, i, q, idx, w):
+    """Node i of tree t at q (dof,) in the weighted coordinates of :func:`nearest`."""
+    for k in range(idx.shape[0]):
+        points[t, k, i] = w[k] * q[idx[k]]
+
+
+@njit(cache=True, inline="always")
+def _cut(flags, points, t, i):
+    """Take node i off tree t: never extended, never nearest."""
+    flags[t, i] |= _DEAD
+    points[t, 0, i] = np.inf
+
+
 @njit(cache=True)
-def _extend(nodes, parents, flags, counters, t, target, near, dist, step, res, budget, idx, checker, scratch,
-            motion):
+def _extend(nodes, parents, flags, points, counters, t, target, near, dist, step, res, budget, idx, w, checker,
+            scratch, motion):
     """Step tree t from node ``near`` (at distance ``dist``) toward target; (result, new node)."""
     size = counters[SIZE + t]
     if size == nodes.shape[1]:
@@ -122,24 +137,26 @@ def _extend(nodes, parents, flags, counters, t, target, near, dist, step, res, b
     if verdict == BLOCKED:
         return _TRAPPED, -1
     parents[t, size], flags[t, size] = near, _CHECKED if verdict == FREE else 0
+    _set_point(points, t, size, new, idx, w)
     counters[SIZE + t] = size + 1
     return (_REACHED if dist <= step else _ADVANCED), size
 
 
 @njit(cache=True)
-def _connect(nodes, parents, flags, counters, t, target, step, res, budget, idx, w, checker, scratch, motion):
+def _connect(nodes, parents, flags, points, work, counters, t, target, step, res, budget, idx, w, checker, scratch,
+             motion):
     """Extend tree t toward target until reached or blocked; (result, last node)."""
-    near, dist = nearest(nodes[t], counters[SIZE + t], target, idx, w, flags[t], _DEAD)
+    near, dist = nearest(points[t], counters[SIZE + t], target, idx, w, work)
     while True:
-        result, new = _extend(nodes, parents, flags, counters, t, target, near, dist, step, res, budget, idx, checker,
-                              scratch, motion)
+        result, new = _extend(nodes, parents, flags, points, counters, t, target, near, dist, step, res, budget, idx,
+                              w, checker, scratch, motion)
         if result != _ADVANCED:
             return result, new
         near, dist = new, distance(nodes[t, new], target, idx, w)
 
 
 @njit(cache=True)
-def _confirm(nodes, parents, flags, counters, t, node, res, checker, scratch, motion):
+def _confirm(nodes, parents, flags, points, counters, t, node, res, checker, scratch, motion):
     """Finish the checks of the edges from tree t's root to node; on a blocked edge cut the
     subtree below it off the tree and return False."""
     k = node
@@ -147,10 +164,10 @@ def _confirm(nodes, parents, flags, counters, t, node, res, checker, scratch, mo
         if not flags[t, k] & _CHECKED:
             if motion_free(nodes[t, parents[t, k]], nodes[t, k], res, checker, scratch, motion, counters,
                            NO_LIMIT) != FREE:
-                flags[t, k] |= _DEAD
+                _cut(flags, points, t, k)
                 for i in range(k + 1, counters[SIZE + t]):  # children come after their parents
                     if flags[t, parents[t, i]] & _DEAD:
-                        flags[t, i] |= _DEAD
+                        _cut(flags, points, t, i)
                 return False
             flags[t, k] |= _CHECKED
         k = parents[t, k]
@@ -178,12 +195,14 @@ def _write_path(nodes, parents, counters, start_node, goal_node, joined, path):
 
 
 @njit(cache=True)
-def search(nodes, parents, flags, counters, path, rng, iterations, step, res, budget, idx, w, lower, upper, sample,
-           checker, scratch, motion):
+def search(nodes, parents, flags, points, work, counters, path, rng, iterations, step, res, budget, idx, w, lower,
+           upper, sample, checker, scratch, motion):
     """Run up to ``iterations`` RRT-Connect iterations; returns RUNNING, FOUND or FULL.
 
     Tree 0 (start) and tree 1 (goals) hold nodes (2, capacity, dof) with parents (2,
-    capacity) (-1 for roots), flags (2, capacity) and sizes ``counters[SIZE:SIZE + 2]``. The
+    capacity) (-1 for roots), flags (2, capacity), the nodes' coordinates for :func:`nearest`
+    ``points`` (2, n, capacity) (``work`` (capacity,) its scratch) and sizes
+    ``counters[SIZE:SIZE + 2]``. The
     first ``counters[START_NODES]`` nodes of tree 0 are the start and its escape node; goals
     (roots with their escape nodes) may be appended to tree 1 between calls, and the direct
     edges from the start nodes to the goal nodes from ``counters[DIRECT]`` on are tried first.
@@ -205,34 +224,36 @@ def search(nodes, parents, flags, counters, path, rng, iterations, step, res, bu
         counters[ITERATIONS] += 1
         for k in range(idx.shape[0]):
             sample[idx[k]] = lower[k] + uniform(rng) * (upper[k] - lower[k])
-        near, dist = nearest(nodes[t], counters[SIZE + t], sample, idx, w, flags[t], _DEAD)
-        result, new = _extend(nodes, parents, flags, counters, t, sample, near, dist, step, res, budget, idx, checker,
-                              scratch, motion)
+        near, dist = nearest(points[t], counters[SIZE + t], sample, idx, w, work)
+        result, new = _extend(nodes, parents, flags, points, counters, t, sample, near, dist, step, res, budget, idx,
+                              w, checker, scratch, motion)
         if result == _NO_ROOM:
             counters[ITERATIONS] -= 1
             return FULL
         if result == _TRAPPED:
             continue
-        result, other = _connect(nodes, parents, flags, counters, 1 - t, nodes[t, new], step, res, budget, idx, w,
-                                 checker, scratch, motion)
+        result, other = _connect(nodes, parents, flags, points, work, counters, 1 - t, nodes[t, new], step, res,
+                                 budget, idx, w, checker, scratch, motion)
         if result == _NO_ROOM:
             return FULL
         if result == _REACHED:
             start_node, goal_node = (new, other) if t == 0 else (other, new)
-            if (_confirm(nodes, parents, flags, counters, 0, start_node, res, checker, scratch, motion)
-                    and _confirm(nodes, parents, flags, counters, 1, goal_node, res, checker, scratch, motion)):
+            if (_confirm(nodes, parents, flags, points, counters, 0, start_node, res, checker, scratch, motion)
+                    and _confirm(nodes, parents, flags, points, counters, 1, goal_node, res, checker, scratch, motion)):
                 _write_path(nodes, parents, counters, start_node, goal_node, True, path)
                 return FOUND
     return RUNNING
 
 
 class _Trees:
-    """Tree arrays for :func:`search`, doubled when full."""
+    """Tree arrays for :func:`search` in the space ``space``, doubled when full."""
 
-    def __init__(self, start_nodes: list, capacity: int, dof: int) -> None:
+    def __init__(self, start_nodes: list, capacity: int, space: ConfigurationSpace) -> None:
+        self.space, dof = space, space.model.dof
         self.nodes = np.empty((2, capacity, dof))
         self.parents = np.full((2, capacity), -1, dtype=np.int64)
         self.flags = np.zeros((2, capacity), dtype=np.int64)
+        self.points, self.work = np.empty((2, space.n, capacity)), np.empty(capacity)
         self.path = np.empty((2 * capacity, dof))
         self.counters = np.zeros(8, dtype=np.int64)
         self.append(0, start_nodes)
@@ -247,6 +268,9 @@ class _Trees:
         for i, (q, parent, flags) in enumerate(tree_nodes):
             self.nodes[t, first + i], self.flags[t, first + i] = q, flags
             self.parents[t, first + i] = first + parent if parent >= 0 else -1
+            self.points[t, :, first + i] = self.space.weights * q[self.space.indices]
+            if flags & _DEAD:
+                self.points[t, 0, first + i] = np.inf
         self.counters[SIZE + t] = first + len(tree_nodes)
         return first
 
@@ -257,9 +281,11 @@ class _Trees:
         bigger = min(2 * capacity, limit)
         nodes = np.empty((2, bigger, self.nodes.shape[2]))
         parents, flags = np.full((2, bigger), -1, dtype=np.int64), np.zeros((2, bigger), dtype=np.int64)
+        points = np.empty((2, self.space.n, bigger))
         nodes[:, :capacity], parents[:, :capacity], flags[:, :capacity] = self.nodes, self.parents, self.flags
-        self.nodes, self.parents, self.flags = nodes, parents, flags
-        self.path = np.empty((2 * bigger, nodes.shape[2]))
+        points[:, :, :capacity] = self.points
+        self.nodes, self.parents, self.flags, self.points = nodes, parents, flags, points
+        self.path, self.work = np.empty((2 * bigger, nodes.shape[2])), np.empty(bigger)
         return True
 
 
@@ -356,7 +382,7 @@ class RRTConnectSearch:
         start, *goal_nodes = _endpoints(self.context, qs, toward, self.settings, self.rng)
         self.start_status = PlanStatus.INVALID_START if start is None else None
         if start is not None:
-            self.trees = _Trees(start, min(1024, self.settings.max_nodes), self.ctx.model.dof)
+            self.trees = _Trees(start, min(1024, self.settings.max_nodes), self.context.space)
             self.escapes = len(start) - 1
             self._add_goal_nodes(0, goal_nodes)
 
@@ -377,8 +403,9 @@ class RRTConnectSearch:
         chunk = 128
         while True:
             begun, before = time.perf_counter(), trees.counters[ITERATIONS]
-            code = search(trees.nodes, trees.parents, trees.flags, trees.counters, trees.path, self.state, chunk,
-                          settings.step, self.res, settings.eager_checks, space.indices, space.weights, *work)
+            code = search(trees.nodes, trees.parents, trees.flags, trees.points, trees.work, trees.counters, trees.path,
+                          self.state, chunk, settings.step, self.res, settings.eager_checks, space.indices,
+                          space.weights, *work)
             now = time.perf_counter()
             if code == FOUND:
                 return trees.path[:trees.counters[PATH_LENGTH]].copy(), int(trees.counters[GOAL_ROOT])
