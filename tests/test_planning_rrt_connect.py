@@ -325,9 +325,9 @@ def test_free_bubbles_of_self_pairs_hold():
     qs = model.random_configurations(rng, 400)
     blocked = 0
     for qa, qb in zip(qs[:-1], qs[1:]):
-        _scales(qa, qb, data[9], motion)
+        _scales(qa, qb, data[9], data[-1], motion)
         s = rng.uniform()
-        bubble = SK.clearance(qa + s * (qb - qa), data, ctx.scratch, 1.0, motion[2])
+        bubble = SK.clearance(qa + s * (qb - qa), data, ctx.scratch, 1.0, motion[4])
         if bubble > 0:
             inside = np.linspace(max(s - bubble, 0.0), min(s + bubble, 1.0), 200)
             assert np.all(ctx.spheres.is_free(qa + inside[:, None] * (qb - qa)))

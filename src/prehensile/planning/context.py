@@ -234,11 +234,14 @@ class PlanningContext:
         self.spheres = SphereChecker(self.collision_model, self.obstacles, self.T_world_base, self.sphere_model,
                                      self.acm)
         self.motion = self._motion_tables()
-        """(Wball (dof, S), Wside (dof, P, 2), scales, queue (Q, 2), q (dof,)) for
-        :func:`prehensile.planning.kernels.motion_free`: per variable, the weight of each ball
-        of the sphere checker (all joints on its path) and of each side of each self pair (the
-        joints that move that side only, bounded over the side's balls), the scale arrays of
-        :func:`~prehensile.collision.sphere_kernels.clearance`, work arrays (see
+        """(Wball (dof, S), Wgroup (G, D), qgroup (G, D), pcut (P,), scales, queue (Q, 2),
+        q (dof,), dq (dof + 1,), below (G, D + 1)) for
+        :func:`prehensile.planning.kernels.motion_free`: per variable the weight of each ball
+        of the sphere checker (all joints on its path); per group (link with balls) the moving
+        joints on its path, root first, with their largest weight over the group's balls and
+        their variables (padded with weight 0 and variable ``dof``); per self pair the number
+        of moving joints the two paths share (the joints below move one side only); the scale
+        arrays of :func:`~prehensile.collision.sphere_kernels.clearance`; work arrays (see
         :meth:`motion_arrays`)."""
         self.scratch = SK.make_scratch(self.spheres.data)
         self.counters = np.zeros(1, dtype=np.int64)
@@ -257,29 +260,32 @@ class PlanningContext:
         links = self.sphere_model.sphere_link[order]
         # a ball's distance to anything changes only as fast as its centre moves: radius 0
         W = ball_joint_weights(model, links, self.sphere_model.centers[order], np.zeros(len(links)))
-        moving = np.flatnonzero(np.isin(model.joint_type, (REVOLUTE, PRISMATIC)))
+        is_moving = np.isin(model.joint_type, (REVOLUTE, PRISMATIC))
+        moving = np.flatnonzero(is_moving)
         to_variables = np.zeros((model.n_links, model.dof))  # joint weights -> variable weights
         to_variables[moving, model.joint_q_index[moving]] = 1.0
         Wball = (W @ to_variables).T
-        group_link, above = checker.group_links, [set(model.path_to_root(i)) for i in range(model.n_links)]
-        Wside = np.zeros((model.dof, len(pairs), 2))
-        for p, pair in enumerate(pairs):
-            links_p = [group_link[g] for g in pair]
-            for side, g in enumerate(pair):
-                only = sorted(above[links_p[side]] - above[links_p[1 - side]])  # the joints moving one side only
-                Wside[:, p, side] = np.max(W[granges[g, 0]:granges[g, 1], only], axis=0, initial=0.0) \
-                    @ to_variables[only]
+        paths = [[k for k in reversed(model.path_to_root(link)) if is_moving[k]] for link in range(model.n_links)]
+        group_link = checker.group_links
+        depth = max((len(paths[link]) for link in group_link), default=0)
+        Wgroup, qgroup = np.zeros((len(granges), depth)), np.full((len(granges), depth), model.dof, dtype=np.int64)
+        for g, (link, (start, stop)) in enumerate(zip(group_link, granges)):
+            path = paths[link]
+            Wgroup[g, :len(path)] = np.max(W[start:stop][:, path], axis=0, initial=0.0)
+            qgroup[g, :len(path)] = model.joint_q_index[path]
+        pcut = np.array([len(set(paths[group_link[i]]) & set(paths[group_link[j]])) for i, j in pairs], dtype=np.int64)
         scales = (np.empty(len(granges)), np.empty((len(pairs), 2)), np.empty(len(links)))
         span = np.where(np.isfinite(model.upper - model.lower), model.upper - model.lower, 2 * np.pi)
         self._longest = float(np.max(span @ Wball, initial=0.0))  # farthest a ball can move on any segment
-        return np.ascontiguousarray(Wball), Wside, scales, np.empty((0, 2)), np.empty(model.dof)
+        return (np.ascontiguousarray(Wball), Wgroup, qgroup, pcut, scales, np.empty((0, 2)), np.empty(model.dof),
+                np.zeros(model.dof + 1), np.empty((len(granges), depth + 1)))
 
     def motion_arrays(self, resolution: float) -> tuple:
         """:attr:`motion` with a bisection queue long enough for edge checks at ``resolution`` (m):
         open intervals are separated by covered stretches of at least one resolution step."""
         need = int(self._longest / resolution) + 8
-        if len(self.motion[3]) < need:
-            self.motion = self.motion[:3] + (np.empty((need, 2)),) + self.motion[4:]
+        if len(self.motion[5]) < need:
+            self.motion = self.motion[:5] + (np.empty((need, 2)),) + self.motion[6:]
         return self.motion
 
     def refined(self, links: set[str]) -> PlanningContext | None:

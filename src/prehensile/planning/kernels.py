@@ -78,20 +78,25 @@ def nearest(points, count, x, idx, w, work):
 
 
 @njit(cache=True, fastmath=FAST)
-def _scales(qa, qb, granges, motion):
+def _scales(qa, qb, granges, pairs, motion):
     """Fill the clearance scales for the segment qa -> qb; returns the farthest any ball moves (m)."""
-    Wball, Wside, (gscale, pscale, bscale), _, _ = motion
+    Wball, Wgroup, qgroup, pcut, (gscale, pscale, bscale), _, _, dq, below = motion
     bscale[:] = 0.0
-    pscale[:] = 0.0
-    for k in range(qa.shape[0]):
-        d = abs(qb[k] - qa[k])
-        if d == 0.0:  # the joints not planned
-            continue
-        for s in range(bscale.shape[0]):
-            bscale[s] += Wball[k, s] * d
-        for p in range(pscale.shape[0]):
-            pscale[p, 0] += Wside[k, p, 0] * d
-            pscale[p, 1] += Wside[k, p, 1] * d
+    for k in range(qa.shape[0]):  # dq[dof] stays 0: the variable of the padding in qgroup
+        dq[k] = abs(qb[k] - qa[k])
+        if dq[k] != 0.0:  # skips the joints not planned
+            for s in range(bscale.shape[0]):
+                bscale[s] += Wball[k, s] * dq[k]
+    depth = Wgroup.shape[1]
+    for g in range(Wgroup.shape[0]):  # below[g, c]: bound from the joints below the c-th on g's path
+        acc = 0.0
+        below[g, depth] = 0.0
+        for i in range(depth - 1, -1, -1):
+            acc += Wgroup[g, i] * dq[qgroup[g, i]]
+            below[g, i] = acc
+    for p in range(pscale.shape[0]):
+        pscale[p, 0] = max(below[pairs[p, 0], pcut[p]], _TINY)
+        pscale[p, 1] = max(below[pairs[p, 1], pcut[p]], _TINY)
     longest = 0.0
     for g in range(granges.shape[0]):
         m = _TINY
@@ -100,8 +105,6 @@ def _scales(qa, qb, granges, motion):
             m = max(m, bscale[s])
         gscale[g] = m
         longest = max(longest, m)
-    for p in range(pscale.shape[0]):
-        pscale[p, 0], pscale[p, 1] = max(pscale[p, 0], _TINY), max(pscale[p, 1], _TINY)
     return longest
 
 
@@ -124,8 +127,8 @@ def motion_free(qa, qb, res, checker, scratch, motion, counters, budget):
     Returns:
         FREE, BLOCKED, or UNDECIDED when the budget ran out first.
     """
-    scales, queue, q = motion[2], motion[3], motion[4]
-    longest = _scales(qa, qb, checker[9], motion)
+    scales, queue, q = motion[4], motion[5], motion[6]
+    longest = _scales(qa, qb, checker[9], checker[-1], motion)
     counters[0] += 1
     cover_b = SK.clearance(qb, checker, scratch, _CAP, scales)
     if cover_b < 0.0:
