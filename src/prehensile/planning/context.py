@@ -235,7 +235,7 @@ class PlanningContext:
                                      self.acm)
         self.motion = self._motion_tables()
         """(Wball (dof, S), Wgroup (G, D), qgroup (G, D), pcut (P,), scales, queue (Q, 2),
-        q (dof,), dq (dof + 1,), below (G, D + 1)) for
+        q (dof,), dq (dof + 1,), below (G, D + 1), last column 0) for
         :func:`prehensile.planning.kernels.motion_free`: per variable the weight of each ball
         of the sphere checker (all joints on its path); per group (link with balls) the moving
         joints on its path, root first, with their largest weight over the group's balls and
@@ -278,7 +278,7 @@ class PlanningContext:
         span = np.where(np.isfinite(model.upper - model.lower), model.upper - model.lower, 2 * np.pi)
         self._longest = float(np.max(span @ Wball, initial=0.0))  # farthest a ball can move on any segment
         return (np.ascontiguousarray(Wball), Wgroup, qgroup, pcut, scales, np.empty((0, 2)), np.empty(model.dof),
-                np.zeros(model.dof + 1), np.empty((len(granges), depth + 1)))
+                np.zeros(model.dof + 1), np.zeros((len(granges), depth + 1)))
 
     def motion_arrays(self, resolution: float) -> tuple:
         """:attr:`motion` with a bisection queue long enough for edge checks at ``resolution`` (m):

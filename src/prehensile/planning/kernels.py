@@ -90,7 +90,6 @@ def _scales(qa, qb, granges, pairs, motion):
     depth = Wgroup.shape[1]
     for g in range(Wgroup.shape[0]):  # below[g, c]: bound from the joints below the c-th on g's path
         acc = 0.0
-        below[g, depth] = 0.0
         for i in range(depth - 1, -1, -1):
             acc += Wgroup[g, i] * dq[qgroup[g, i]]
             below[g, i] = acc

@@ -202,10 +202,10 @@ def search(nodes, parents, flags, points, work, counters, path, rng, iterations,
     Tree 0 (start) and tree 1 (goals) hold nodes (2, capacity, dof) with parents (2,
     capacity) (-1 for roots), flags (2, capacity), the nodes' coordinates for :func:`nearest`
     ``points`` (2, n, capacity) (``work`` (capacity,) its scratch) and sizes
-    ``counters[SIZE:SIZE + 2]``. The
-    first ``counters[START_NODES]`` nodes of tree 0 are the start and its escape node; goals
-    (roots with their escape nodes) may be appended to tree 1 between calls, and the direct
-    edges from the start nodes to the goal nodes from ``counters[DIRECT]`` on are tried first.
+    ``counters[SIZE:SIZE + 2]``. The first ``counters[START_NODES]`` nodes of tree 0 are the
+    start and its escape node; goals (roots with their escape nodes) may be appended to tree 1
+    between calls, and the direct edges from the start nodes to the goal nodes from
+    ``counters[DIRECT]`` on are tried first.
     Nodes flagged _DEAD are never extended (cut off, or a root that only its certified escape
     edge leaves).
     ``sample`` (dof,) holds the values of the joints not planned; ``lower``, ``upper`` (n,)
@@ -268,9 +268,9 @@ class _Trees:
         for i, (q, parent, flags) in enumerate(tree_nodes):
             self.nodes[t, first + i], self.flags[t, first + i] = q, flags
             self.parents[t, first + i] = first + parent if parent >= 0 else -1
-            self.points[t, :, first + i] = self.space.weights * q[self.space.indices]
+            _set_point(self.points, t, first + i, q, self.space.indices, self.space.weights)
             if flags & _DEAD:
-                self.points[t, 0, first + i] = np.inf
+                _cut(self.flags, self.points, t, first + i)
         self.counters[SIZE + t] = first + len(tree_nodes)
         return first
 
