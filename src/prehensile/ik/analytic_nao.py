@@ -70,13 +70,13 @@ representative of each angle is returned.
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
 from numba import njit
 
+from prehensile.clock import clock
 from prehensile.errors import PrehensileError
 from prehensile.ik.result import IKResult, IKStatus, check_target_poses
 from prehensile.kinematics import link_pose
@@ -408,7 +408,7 @@ def nao_arm_ik(model: RobotModel, chain: str, target: np.ndarray, q_seed: np.nda
         PrehensileError: NaN / non-rotation target, a bad seed or tolerance, or a chain that is
             not a NAO-type arm.
     """
-    start = time.perf_counter()
+    start = clock()
     arm = _arm(model, chain)
     poses = check_target_poses(target)
     seed = model.neutral_configuration() if q_seed is None else model.check_configuration(q_seed, "q_seed").copy()
@@ -422,9 +422,9 @@ def nao_arm_ik(model: RobotModel, chain: str, target: np.ndarray, q_seed: np.nda
         solutions[:, arm.q_indices] = chain_q[order]
         best = chain_err[order[0]]
         return IKResult(IKStatus.SUCCESS, solutions[0].copy(), solutions, float(best[0]), float(best[1]), 0,
-                        time.perf_counter() - start, target_index=int(index))
+                        clock() - start, target_index=int(index))
     reached = link_pose(model, seed, arm.tip)
     return IKResult(IKStatus.UNREACHABLE, seed, np.empty((0, model.dof)),
                     float(np.linalg.norm(reached[:3, 3] - poses[0, :3, 3])),
                     float(np.linalg.norm(rotation_error(poses[0, :3, :3], reached[:3, :3]))), 0,
-                    time.perf_counter() - start)
+                    clock() - start)

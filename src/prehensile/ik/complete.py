@@ -18,12 +18,12 @@ Choices (the thesis leaves them open):
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
 
+from prehensile.clock import clock
 from prehensile.errors import PrehensileError
 from prehensile.ik.jacobian import ChainSolver
 from prehensile.ik.result import IKResult, IKStatus
@@ -66,7 +66,7 @@ def solve_ik_complete(solver: ChainSolver, target: np.ndarray, q_seed: np.ndarra
         :class:`IKResult`: SUCCESS, TIMEOUT (budget spent) or NOT_CONVERGED (``max_restarts``
         reached); ``q`` is then the last configuration tried.
     """
-    start = time.perf_counter()
+    start = clock()
     targets = solver.targets(target)
     q0 = solver.seed(q_seed)
     seeds = np.repeat(q0[solver.var_q][None], len(targets), axis=0)
@@ -83,7 +83,7 @@ def solve_ik_complete(solver: ChainSolver, target: np.ndarray, q_seed: np.ndarra
             continue
         if settings.max_restarts is not None and restarts >= settings.max_restarts:
             return _result(solver, IKStatus.NOT_CONVERGED, q, pos_err, rot_err, iterations, start, index, restarts)
-        if time.perf_counter() - start >= settings.time_budget_s:
+        if clock() - start >= settings.time_budget_s:
             return _result(solver, IKStatus.TIMEOUT, q, pos_err, rot_err, iterations, start, index, restarts)
         if not isinstance(rng, np.random.Generator):  # created only when needed: it costs ~20 us
             rng = np.random.default_rng(rng)
@@ -97,7 +97,7 @@ def _result(solver: ChainSolver, status: IKStatus, q: np.ndarray, pos_err: float
     ok = status is IKStatus.SUCCESS
     return IKResult(status, q, q[None] if ok else np.zeros((0, solver.model.dof)), float(pos_err),
                     0.0 if solver.settings.position_only else float(rot_err), int(iterations),
-                    time.perf_counter() - start, int(index), restarts)
+                    clock() - start, int(index), restarts)
 
 
 def collision_filter(sphere_checker=None, exact_checker=None) -> Callable[[np.ndarray], bool]:

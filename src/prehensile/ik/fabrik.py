@@ -40,13 +40,13 @@ not supported; mimic joints follow their leader (the fit ignores their motion).
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
 from numba import njit
 
+from prehensile.clock import clock
 from prehensile.errors import PrehensileError
 from prehensile.ik.result import IKResult, IKStatus, check_target_positions
 from prehensile.kinematics import forward_kinematics
@@ -378,7 +378,7 @@ def fabrik(model: RobotModel, chain: str, target: np.ndarray, q_seed: np.ndarray
     Raises:
         PrehensileError: a NaN or malformed target, orientation or seed; an unsupported chain.
     """
-    start = time.perf_counter()
+    start = clock()
     targets = check_target_positions(target)
     has_rot, target_axes = target_orientation is not None, np.eye(3)
     if has_rot:
@@ -417,4 +417,4 @@ def fabrik(model: RobotModel, chain: str, target: np.ndarray, q_seed: np.ndarray
         outcome = IKStatus.UNREACHABLE if all_unreachable else IKStatus.NOT_CONVERGED
         solutions = np.zeros((0, model.dof))
     return IKResult(outcome, q, solutions, float(pos_err), float(rot_err), int(iterations),
-                    time.perf_counter() - start, int(index))
+                    clock() - start, int(index))

@@ -14,12 +14,12 @@ instead of the thesis's grids.
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass
 from typing import Callable, Sequence
 
 import numpy as np
 
+from prehensile.clock import clock
 from prehensile.errors import PrehensileError
 from prehensile.ik.complete import CompleteIKSettings, solve_ik_complete
 from prehensile.ik.hand_pair import UNBOUNDED, HandPair
@@ -64,7 +64,7 @@ def solve_ik_hybrid(arms: Sequence[ChainSolver], targets: Sequence[np.ndarray], 
     """
     if len(arms) != len(targets) or not arms:
         raise PrehensileError(f"solve_ik_hybrid: {len(arms)} arms but {len(targets)} targets")
-    start = time.perf_counter()
+    start = clock()
     model = arms[0].model
     rng = np.random.default_rng(rng)
     poses = [arm.targets(t) for arm, t in zip(arms, targets)]
@@ -78,7 +78,7 @@ def solve_ik_hybrid(arms: Sequence[ChainSolver], targets: Sequence[np.ndarray], 
         samples += 1
         reached, errors = [], []
         for arm, arm_targets in zip(arms, poses):
-            remaining = settings.time_budget_s - (time.perf_counter() - start)
+            remaining = settings.time_budget_s - (clock() - start)
             if remaining <= 0:
                 break
             result = solve_ik_complete(arm, arm_targets, q, rng, CompleteIKSettings(
@@ -93,10 +93,10 @@ def solve_ik_hybrid(arms: Sequence[ChainSolver], targets: Sequence[np.ndarray], 
             best = (max(e[0] for e in errors), max(e[1] for e in errors))
             if is_valid is None or is_valid(q):
                 return IKResult(IKStatus.SUCCESS, q.copy(), q[None].copy(), best[0], best[1], iterations,
-                                time.perf_counter() - start, reached[0], samples - 1, tuple(reached))
-        if time.perf_counter() - start >= settings.time_budget_s:
+                                clock() - start, reached[0], samples - 1, tuple(reached))
+        if clock() - start >= settings.time_budget_s:
             return IKResult(IKStatus.TIMEOUT, q.copy(), np.zeros((0, model.dof)), best[0], best[1], iterations,
-                            time.perf_counter() - start, 0, samples - 1)
+                            clock() - start, 0, samples - 1)
 
 
 @dataclass(frozen=True)
@@ -167,7 +167,7 @@ def solve_regrasp_ik(arms: Sequence[ChainSolver], grasps: Sequence[np.ndarray], 
         (result, T_world_object (4, 4) or None); ``result.target_indices`` are the grasps,
         ``restarts`` the attempts before the accepted one. UNREACHABLE if ``pairs`` is empty.
     """
-    start = time.perf_counter()
+    start = clock()
     rng = np.random.default_rng(rng)
     pair = HandPair(arms, free)
     grasp_sets = [np.ascontiguousarray(arm.targets(g)) for arm, g in zip(arms, grasps)]
@@ -179,7 +179,7 @@ def solve_regrasp_ik(arms: Sequence[ChainSolver], grasps: Sequence[np.ndarray], 
     T_a_b = _base_offset(pair, q0) if region is None else None
     q, T = q0.copy(), np.eye(4)
     attempts = iterations = 0
-    while len(pairs) and time.perf_counter() - start < time_budget_s:
+    while len(pairs) and clock() - start < time_budget_s:
         if region is None:  # held by hand b at one of its samples (in its base frame)
             chosen = pairs[rng.integers(len(pairs), size=FREE_CANDIDATES * batch)]
             tools = reach[1].poses[rng.integers(len(reach[1].poses), size=len(chosen))]
@@ -203,10 +203,10 @@ def solve_regrasp_ik(arms: Sequence[ChainSolver], grasps: Sequence[np.ndarray], 
             if is_valid is None or is_valid(q):
                 indices = tuple(int(i) for i in chosen[found])
                 return IKResult(IKStatus.SUCCESS, q.copy(), q[None].copy(), pos_err, rot_err, iterations,
-                                time.perf_counter() - start, indices[0], attempts - 1, indices), T.copy()
+                                clock() - start, indices[0], attempts - 1, indices), T.copy()
             seeds, objects, chosen = seeds[found + 1:], objects[found + 1:], chosen[found + 1:]
     status = IKStatus.TIMEOUT if len(pairs) else IKStatus.UNREACHABLE
-    return IKResult(status, q0, np.zeros((0, len(q0))), np.inf, np.inf, iterations, time.perf_counter() - start, 0,
+    return IKResult(status, q0, np.zeros((0, len(q0))), np.inf, np.inf, iterations, clock() - start, 0,
                     attempts), None
 
 

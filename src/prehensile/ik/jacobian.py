@@ -20,12 +20,12 @@ limit or a singularity); random restarts (:mod:`prehensile.ik.complete`) take it
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
 
+from prehensile.clock import clock
 from prehensile.errors import PrehensileError
 from prehensile.ik import kernels
 from prehensile.ik.result import IKResult, IKStatus, check_target_poses, check_target_positions
@@ -184,7 +184,7 @@ class ChainSolver:
                 (k, 3) with ``position_only``.
             q_seed: (dof,) start configuration; the neutral one if None.
         """
-        start = time.perf_counter()
+        start = clock()
         targets = self.targets(target)
         q0 = self.seed(q_seed)
         seeds = np.repeat(q0[self.var_q][None], len(targets), axis=0)
@@ -192,7 +192,7 @@ class ChainSolver:
         status = IKStatus.SUCCESS if attempt >= 0 else IKStatus.NOT_CONVERGED
         return IKResult(status, q, q[None] if attempt >= 0 else np.zeros((0, self.model.dof)), float(pos_err),
                         float(rot_err) if not self.settings.position_only else 0.0, int(iterations),
-                        time.perf_counter() - start, int(index))
+                        clock() - start, int(index))
 
 
 def solve_ik(model: RobotModel, chain: str, target: np.ndarray, q_seed: np.ndarray | None = None,

@@ -38,7 +38,7 @@ class IKResult:
         rotation_error: angle (rad) of the rotation between target and reached tip orientation
             of ``q`` (0 for position-only targets).
         iterations: solver iterations summed over all restarts.
-        time_s: wall time (s).
+        time_s: wall time (s) without numba compilation (:func:`prehensile.clock.clock`).
         target_index: index of the pose reached when the target was a pose set (0 otherwise).
         restarts: random restarts used (0 when the first seed succeeded).
         target_indices: per tool, the pose reached, for solvers with several tools (dual-arm

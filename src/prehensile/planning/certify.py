@@ -31,7 +31,6 @@ surfaces, as in :class:`~prehensile.collision.exact.ExactChecker`.
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass
 from typing import Sequence
 
@@ -39,6 +38,7 @@ import coal
 import numpy as np
 from numba import njit
 
+from prehensile.clock import clock
 from prehensile.collision import sphere_kernels as SK
 from prehensile.collision.exact import coal_geometry
 from prehensile.collision.sphere_checker import obstacle_arrays
@@ -65,7 +65,7 @@ class CertifyReport:
         configurations_checked: configurations at which some pair was measured.
         distance_queries: coal distance and collision queries.
         min_distance: smallest lower bound of the exact clearance seen (m); <= 0 on a collision.
-        time_s: wall time (s).
+        time_s: wall time (s) without numba compilation (:func:`prehensile.clock.clock`).
         colliding_links: the robot link(s) of the first colliding pair (two for a self
             collision), empty if ok or if a waypoint left the limits.
     """
@@ -223,12 +223,12 @@ class ExactCertifier:
 
     def certify(self, path: np.ndarray, resolution: float) -> CertifyReport:
         """Certify the piecewise-linear path (N, dof); see :func:`certify_path`."""
-        start = time.perf_counter()
+        start = clock()
         path = np.ascontiguousarray(self.model.check_configuration(path, "path").reshape(-1, self.model.dof))
         inside = self.model.within_limits(path)
         if not inside.all():
             bad = int(np.argmin(inside))
-            return CertifyReport(False, max(bad - 1, 0), time_s=time.perf_counter() - start)
+            return CertifyReport(False, max(bad - 1, 0), time_s=clock() - start)
         n, count = len(path), len(self._pairs)
         delta = np.abs(np.diff(path, axis=0))
         seg = np.zeros((count, n))  # per pair, motion bound of each segment (last: 0)
@@ -245,7 +245,7 @@ class ExactCertifier:
         while True:
             m = _next_due(*walk)
             if m < 0:
-                return CertifyReport(True, -1, int(stats[0]), queries, float(stats[1]), time.perf_counter() - start)
+                return CertifyReport(True, -1, int(stats[0]), queries, float(stats[1]), clock() - start)
             d = bound[:m].copy()
             near = np.flatnonzero(d < self._near)  # far pairs keep the ball bound; the near ones ask coal
             close = due[near]
@@ -256,7 +256,7 @@ class ExactCertifier:
                 if d[k] < 0.0:
                     i, t = int(position[0]), position[1]
                     bad = i - 1 if (t == 0.0 and i > 0) else i
-                    return CertifyReport(False, bad, int(stats[0]), queries, float(d[k]), time.perf_counter() - start,
+                    return CertifyReport(False, bad, int(stats[0]), queries, float(d[k]), clock() - start,
                                          self._links_of(int(due[k])))
             stats[1] = min(stats[1], float(d.min()))
             safe[due[:m]], early[due[:m]] = here[:m] + d, 0.5 * d + 1e-12  # (rounding: reached exactly is due)

@@ -2,10 +2,9 @@
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 
+from prehensile.clock import clock
 from prehensile.planning.certify import certify_path
 from prehensile.planning.context import PlanningContext
 from prehensile.planning.result import PlanStatus
@@ -19,10 +18,10 @@ def finish_path(ctx: PlanningContext, path: np.ndarray, rng: np.random.Generator
     Returns:
         (SUCCESS or CERTIFICATION_FAILED, path (M, dof), shortcut time s, certification time s).
     """
-    start = time.perf_counter()
+    start = clock()
     if shortcut_iterations > 0:
         path = shortcut(ctx, path, rng, iterations=shortcut_iterations)
-    simplified = time.perf_counter()
+    simplified = clock()
     ok = certify_path(ctx, path).ok if certify else True
     status = PlanStatus.SUCCESS if ok else PlanStatus.CERTIFICATION_FAILED
-    return status, path, simplified - start, time.perf_counter() - simplified
+    return status, path, simplified - start, clock() - simplified

@@ -19,12 +19,12 @@ runs one search per end effector round-robin in one thread and keeps the first s
 from __future__ import annotations
 
 import dataclasses
-import time
 from dataclasses import dataclass
 from typing import Callable, Sequence
 
 import numpy as np
 
+from prehensile.clock import clock
 from prehensile.collision.sphere_checker import SphereChecker
 from prehensile.ik.complete import CompleteIKSettings, solve_ik_complete
 from prehensile.ik.hybrid import HybridIKSettings, ObjectRegion, solve_ik_hybrid, solve_regrasp_ik
@@ -74,11 +74,11 @@ class _Search:
 
     def step(self, rng: np.random.Generator, deadline: float) -> PlanResult | None:
         """Sample one goal, then search a round; a finished PlanResult, or None to go on."""
-        q, info = self.sampler(rng, min(self.settings.ik_budget_s, max(deadline - time.perf_counter(), 0.0)))
+        q, info = self.sampler(rng, min(self.settings.ik_budget_s, max(deadline - clock(), 0.0)))
         if q is not None and bool(self.ctx.is_valid(q)):
             self.infos.append(info)
             self.search.add_goals(q)
-        remaining = deadline - time.perf_counter()
+        remaining = deadline - clock()
         if not self.infos or remaining <= 0:
             return None
         result = self.search.solve(min(self.round_s, remaining))
@@ -125,7 +125,7 @@ def multi_eef_rrt(ctx: PlanningContext | dict[str, PlanningContext], q_start: np
     Returns:
         :class:`PlanResult` with ``end_effector`` the hand that grasps.
     """
-    start = time.perf_counter()
+    start = clock()
     deadline = start + settings.time_budget_s
     rng = np.random.default_rng(rng)
     contexts = ctx if isinstance(ctx, dict) else {name: ctx for name in samplers}
@@ -133,18 +133,18 @@ def multi_eef_rrt(ctx: PlanningContext | dict[str, PlanningContext], q_start: np
         if not bool(contexts[name].is_valid(q_start)):
             return PlanResult(PlanStatus.INVALID_START, np.zeros((0, len(q_start))), PlanStats(), end_effector=name)
     searches = {name: _Search(contexts[name], q_start, sampler, settings, rng) for name, sampler in samplers.items()}
-    while time.perf_counter() < deadline:
+    while clock() < deadline:
         for name, search in searches.items():
             result = search.step(rng, deadline)
             if result is not None:  # search time includes the IK sampling of every hand
-                spent = time.perf_counter() - start - result.stats.simplify_time_s - result.stats.certify_time_s
+                spent = clock() - start - result.stats.simplify_time_s - result.stats.certify_time_s
                 stats = dataclasses.replace(result.stats, plan_time_s=spent,
                                             ik_solutions=sum(len(s.infos) for s in searches.values()))
                 return dataclasses.replace(result, stats=stats, end_effector=name)
     found = sum(len(s.infos) for s in searches.values())
     status = PlanStatus.TIMEOUT if found else PlanStatus.NO_GOAL_CONFIGURATION
     first = next(iter(searches.values()))
-    stats = dataclasses.replace(first.stats(time.perf_counter() - start), ik_solutions=found)
+    stats = dataclasses.replace(first.stats(clock() - start), ik_solutions=found)
     return PlanResult(status, np.zeros((0, len(q_start))), stats)
 
 

@@ -26,12 +26,12 @@ the returned path is shortcut and certified with the exact geometry like every p
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
 
+from prehensile.clock import clock
 from prehensile.errors import PrehensileError
 from prehensile.ik import kernels as ik_kernels
 from prehensile.ik.hand_pair import HandPair
@@ -229,7 +229,7 @@ def regrasp_jplus_rrt(ctx: PlanningContext, q_start: np.ndarray, arms: Sequence[
 def _grow(ctx: PlanningContext, q_start: np.ndarray, goals, s: JPlusRRTSettings,
           rng: np.random.Generator | int | None) -> PlanResult:
     """The J+-RRT loop (Alg. 13) over ``goals`` (:class:`_PoseGoals` or :class:`_GraspPairGoals`)."""
-    start_time = time.perf_counter()
+    start_time = clock()
     rng = np.random.default_rng(rng)
     q_start = np.array(ctx.model.check_configuration(q_start, "q_start"), dtype=float)
     counted = int(ctx.counters[0])
@@ -238,7 +238,7 @@ def _grow(ctx: PlanningContext, q_start: np.ndarray, goals, s: JPlusRRTSettings,
     tree = _Tree(q_start, goals.tools(q_start), s.max_nodes)
     iterations = 0
     try:
-        while time.perf_counter() - start_time < s.time_budget_s:
+        while clock() - start_time < s.time_budget_s:
             iterations += 1
             if rng.random() >= s.goal_probability:
                 _extend_randomly(ctx, tree, goals, s.step, rng)
@@ -312,7 +312,7 @@ def _se3_distance(poses: np.ndarray, targets: np.ndarray, rotation_weight: float
 
 
 def _finish(ctx, path, rng, s, iterations, nodes, counted, start_time, goal_index, info) -> PlanResult:
-    plan_time = time.perf_counter() - start_time
+    plan_time = clock() - start_time
     status, path, simplify_time, certify_time = finish_path(ctx, path, rng, s.shortcut_iterations, s.certify)
     stats = PlanStats(iterations, nodes, int(ctx.counters[0]) - counted, 0, plan_time, simplify_time, certify_time)
     if status is not PlanStatus.SUCCESS:
@@ -321,5 +321,5 @@ def _finish(ctx, path, rng, s, iterations, nodes, counted, start_time, goal_inde
 
 
 def _result(status, ctx, iterations, nodes, counted, start_time) -> PlanResult:
-    stats = PlanStats(iterations, nodes, int(ctx.counters[0]) - counted, 0, time.perf_counter() - start_time)
+    stats = PlanStats(iterations, nodes, int(ctx.counters[0]) - counted, 0, clock() - start_time)
     return PlanResult(status, np.zeros((0, ctx.model.dof)), stats)

@@ -31,6 +31,9 @@ class PlanStats:
         plan_time_s: search time (s).
         simplify_time_s: shortcutting / smoothing time (s).
         certify_time_s: exact-model certification time (s).
+
+    Times are wall time without numba compilation (:func:`prehensile.clock.clock`): a
+    query's first call in a process does not spend its budget compiling kernels.
     """
 
     iterations: int = 0

@@ -34,12 +34,12 @@ cover the geometry, with covering balls on the links that collided
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
 
+from prehensile.clock import clock
 from prehensile.errors import PrehensileError
 from prehensile.planning.certify import CertifyReport, certified_escape, certify_path
 from prehensile.planning.context import PlanningContext
@@ -327,7 +327,7 @@ class RRTConnectSearch:
 
     def __init__(self, ctx: PlanningContext, q_start: np.ndarray, settings: RRTConnectSettings = RRTConnectSettings(),
                  rng: np.random.Generator | None = None) -> None:
-        started = time.perf_counter()
+        started = clock()
         self.ctx, self.settings = ctx, settings
         self.rng = np.random.default_rng(0) if rng is None else rng
         model = ctx.model
@@ -341,11 +341,11 @@ class RRTConnectSearch:
         self.start_status: PlanStatus | None = None
         self.goal_row: dict[int, int] = {}  # goal tree root node -> row of self.goals
         self.escapes = 0  # certified escape nodes in the trees
-        self._setup_s = time.perf_counter() - started  # counted into the next solve's search time
+        self._setup_s = clock() - started  # counted into the next solve's search time
 
     def add_goals(self, q_goals: np.ndarray) -> None:
         """Add a goal (dof,) or goals (k, dof); the joints not planned must equal the start's."""
-        started = time.perf_counter()
+        started = clock()
         model, space = self.ctx.model, self.ctx.space
         goals = model.check_configuration(q_goals, "q_goal")
         if goals.ndim > 2 or goals.shape[-1] != model.dof:
@@ -359,7 +359,7 @@ class RRTConnectSearch:
         self.goals = np.vstack([self.goals, goals])
         if self.trees is not None:
             self._append_goals(first)
-        self._setup_s += time.perf_counter() - started
+        self._setup_s += clock() - started
 
     def _append_goals(self, first: int) -> None:
         """Put goals[first:] (with their escape nodes) into the goal tree."""
@@ -396,17 +396,18 @@ class RRTConnectSearch:
         self.trees = None
 
     def _run(self, deadline: float) -> tuple[np.ndarray | None, int]:
-        """Resume the search until ``deadline`` (perf_counter s); (path or None, goal root)."""
+        """Resume the search until ``deadline`` (s, :func:`~prehensile.clock.clock`); (path or None,
+        goal root)."""
         space, trees, settings = self.context.space, self.trees, self.settings
         work = (space.lower, space.upper, self.start.copy(), self.context.spheres.data, self.context.scratch,
                 self.context.motion_arrays(self.res))
         chunk = 128
         while True:
-            begun, before = time.perf_counter(), trees.counters[ITERATIONS]
+            begun, before = clock(), trees.counters[ITERATIONS]
             code = search(trees.nodes, trees.parents, trees.flags, trees.points, trees.work, trees.counters, trees.path,
                           self.state, chunk, settings.step, self.res, settings.eager_checks, space.indices,
                           space.weights, *work)
-            now = time.perf_counter()
+            now = clock()
             if code == FOUND:
                 return trees.path[:trees.counters[PATH_LENGTH]].copy(), int(trees.counters[GOAL_ROOT])
             if code == FULL and not trees.grow(settings.max_nodes) or now >= deadline:
@@ -421,7 +422,7 @@ class RRTConnectSearch:
         Returns:
             :class:`PlanResult` with this call's statistics (see :func:`rrt_connect`).
         """
-        t0 = time.perf_counter() - self._setup_s
+        t0 = clock() - self._setup_s
         self._setup_s = 0.0
         deadline = t0 + time_budget_s
         dof, settings = self.ctx.model.dof, self.settings
@@ -431,18 +432,18 @@ class RRTConnectSearch:
         checks = np.zeros(1, dtype=np.int64)
         report: CertifyReport | None = None
         for attempt in range(settings.certify_retries + 1):
-            begun = time.perf_counter()
+            begun = clock()
             if self.trees is None and self.start_status is None:
                 self._build_trees()
             if self.trees is None or not self.goal_row:
                 status = self.start_status or PlanStatus.INVALID_GOAL
                 if report is None:
-                    return PlanResult(status, empty, PlanStats(plan_time_s=time.perf_counter() - t0))
+                    return PlanResult(status, empty, PlanStats(plan_time_s=clock() - t0))
                 break
             before = self.trees.counters.copy()
             path, root = self._run(deadline)
             counters = self.trees.counters - before
-            totals["plan_time_s"] += time.perf_counter() - (t0 if attempt == 0 else begun)
+            totals["plan_time_s"] += clock() - (t0 if attempt == 0 else begun)
             totals["iterations"] += int(counters[ITERATIONS])
             totals["nodes"] = int(self.trees.counters[SIZE] + self.trees.counters[SIZE + 1])
             totals["collision_checks"] += int(counters[CHECKS])
@@ -450,10 +451,10 @@ class RRTConnectSearch:
                 status = PlanStatus.TIMEOUT if report is None else PlanStatus.CERTIFICATION_FAILED
                 return PlanResult(status, empty, PlanStats(**totals), info={"attempts": attempt + 1, "certify": report})
             if settings.shortcut:
-                begun = time.perf_counter()
+                begun = clock()
                 path = shortcut(self.context, path, self.rng, settings.shortcut_iterations, settings.shortcut_time_s,
                                 self.res, checks)
-                totals["simplify_time_s"] += time.perf_counter() - begun
+                totals["simplify_time_s"] += clock() - begun
             space = self.context.space
             info = {"attempts": attempt + 1, "length": space.path_length(path[:, space.indices]),
                     "escapes": self.escapes, "refined": tuple(sorted(self.refined))}
@@ -466,7 +467,7 @@ class RRTConnectSearch:
                 return PlanResult(PlanStatus.SUCCESS, path, PlanStats(**totals), goal_index=self.goal_row[root],
                                   info=info)
             self._start_over(report)
-            if time.perf_counter() >= deadline:
+            if clock() >= deadline:
                 break
         totals["collision_checks"] += int(checks[0])
         return PlanResult(PlanStatus.CERTIFICATION_FAILED, empty, PlanStats(**totals),

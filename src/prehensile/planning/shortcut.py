@@ -11,11 +11,11 @@ every new segment passes :func:`~prehensile.planning.kernels.motion_free`.
 
 from __future__ import annotations
 
-import time
 
 import numpy as np
 from numba import njit
 
+from prehensile.clock import clock
 from prehensile.errors import PrehensileError
 from prehensile.planning.context import PlanningContext
 from prehensile.planning.kernels import FREE, NO_LIMIT, distance, motion_free, rng_state, uniform
@@ -137,7 +137,7 @@ def shortcut(ctx: PlanningContext, path: np.ndarray, rng: np.random.Generator, i
             np.zeros(1, dtype=np.int64) if stats is None else stats, np.empty(len(buffer)),
             np.empty(ctx.model.dof), np.empty(ctx.model.dof))
     state, n, done = rng_state(rng), len(path), 0
-    start = time.perf_counter()
+    start = clock()
     while True:  # chunks of random attempts (64, 64, 128, ...) until done or out of time
         count = min(max(64, done), iterations - done)
         last = done + count >= iterations
@@ -145,7 +145,7 @@ def shortcut(ctx: PlanningContext, path: np.ndarray, rng: np.random.Generator, i
         done += count
         if last:
             break
-        if time.perf_counter() - start >= time_budget_s:
+        if clock() - start >= time_budget_s:
             n = simplify(buffer, n, 0, False, True, state, *work)
             break
     return buffer[:n].copy()
