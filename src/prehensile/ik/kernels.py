@@ -68,15 +68,24 @@ def chain_pose_jacobian(q, T_world_root, table, var_of_q, T_tip_tcp, frames, pos
             jac[k, c] += col[k]
 
 
+@njit(cache=True, inline="always")
+def _rows_dot(A, B, i, j):
+    """Entry (i, j) of A[:3, :3] @ B[:3, :3].T."""
+    return A[i, 0] * B[j, 0] + A[i, 1] * B[j, 1] + A[i, 2] * B[j, 2]
+
+
 @njit(cache=True, fastmath=FAST)
 def pose_error(target, pose, err):
     """err (6,) = [target position - position (m), rotation vector of R_t R^T (rad)]."""
     for r in range(3):
         err[r] = target[r, 3] - pose[r, 3]
-    R = target[:3, :3] @ pose[:3, :3].T
-    cos_angle = min(max(0.5 * (R[0, 0] + R[1, 1] + R[2, 2] - 1.0), -1.0), 1.0)
+    # R = R_t R^T (rotation parts), entry by entry: no temporary array
+    r00, r01, r02 = _rows_dot(target, pose, 0, 0), _rows_dot(target, pose, 0, 1), _rows_dot(target, pose, 0, 2)
+    r10, r11, r12 = _rows_dot(target, pose, 1, 0), _rows_dot(target, pose, 1, 1), _rows_dot(target, pose, 1, 2)
+    r20, r21, r22 = _rows_dot(target, pose, 2, 0), _rows_dot(target, pose, 2, 1), _rows_dot(target, pose, 2, 2)
+    cos_angle = min(max(0.5 * (r00 + r11 + r22 - 1.0), -1.0), 1.0)
     angle = np.arccos(cos_angle)
-    vx, vy, vz = R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]
+    vx, vy, vz = r21 - r12, r02 - r20, r10 - r01
     sin_angle = np.sin(angle)
     if sin_angle > 1e-7:
         k = angle / (2.0 * sin_angle)
@@ -84,15 +93,15 @@ def pose_error(target, pose, err):
     elif angle < 1.0:  # near zero: first order
         err[3], err[4], err[5] = 0.5 * vx, 0.5 * vy, 0.5 * vz
     else:  # near pi: axis from the diagonal of R = 2 a a^T - I
-        ax = np.sqrt(max(0.5 * (R[0, 0] + 1.0), 0.0))
-        ay = np.sqrt(max(0.5 * (R[1, 1] + 1.0), 0.0))
-        az = np.sqrt(max(0.5 * (R[2, 2] + 1.0), 0.0))
+        ax = np.sqrt(max(0.5 * (r00 + 1.0), 0.0))
+        ay = np.sqrt(max(0.5 * (r11 + 1.0), 0.0))
+        az = np.sqrt(max(0.5 * (r22 + 1.0), 0.0))
         if ax >= ay and ax >= az:
-            ay, az = np.copysign(ay, R[0, 1]), np.copysign(az, R[0, 2])
+            ay, az = np.copysign(ay, r01), np.copysign(az, r02)
         elif ay >= az:
-            ax, az = np.copysign(ax, R[0, 1]), np.copysign(az, R[1, 2])
+            ax, az = np.copysign(ax, r01), np.copysign(az, r12)
         else:
-            ax, ay = np.copysign(ax, R[0, 2]), np.copysign(ay, R[1, 2])
+            ax, ay = np.copysign(ax, r02), np.copysign(ay, r12)
         norm = np.sqrt(ax * ax + ay * ay + az * az)
         err[3], err[4], err[5] = angle * ax / norm, angle * ay / norm, angle * az / norm
 
