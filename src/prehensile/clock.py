@@ -4,9 +4,9 @@ A compiled kernel is compiled on its first call in a process (tens of seconds on
 install, all kernels together) or loaded from numba's on-disk cache (tens of milliseconds).
 A planner or solver given a 50 ms budget on its first call would otherwise spend it all on
 that, time out, and report a time that says nothing about the work. So budgets and the times
-in results read :func:`clock`: ``time.perf_counter()`` (s) minus the time spent in numba's
-compiler lock (compiling or loading from the cache), which numba announces as
-``"numba:compiler_lock"`` events. Benchmarks that compare against peers warm up first and
+in results read :func:`clock`: ``time.perf_counter()`` (s) minus the time spent waiting for
+or holding numba's compiler lock (compiling or loading from the cache, in any thread), which
+numba announces as ``"numba:compiler_lock"`` events. Benchmarks that compare against peers warm up first and
 time with ``time.perf_counter`` directly.
 """
 
