@@ -26,8 +26,8 @@ def test_compiling_a_kernel_does_not_advance_the_clock():
     wall, ticks, compiling = time.perf_counter(), clock(), compile_time()
     assert sum_of_squares(np.arange(4.0)) == 14.0
     wall, ticks, compiling = time.perf_counter() - wall, clock() - ticks, compile_time() - compiling
-    assert compiling > 0.5 * wall
-    assert ticks == pytest.approx(wall - compiling, abs=1e-6)
+    assert compiling > 0.5 * wall, (compiling, wall)
+    assert ticks == pytest.approx(wall - compiling, abs=1e-3)  # read a few microseconds apart
 
     compiled, ticks = compile_time(), clock()
     sum_of_squares(np.arange(4.0))  # compiled now: the clock runs as the wall clock
