@@ -6,8 +6,8 @@ A planner or solver given a 50 ms budget on its first call would otherwise spend
 that, time out, and report a time that says nothing about the work. So budgets and the times
 in results read :func:`clock`: ``time.perf_counter()`` (s) minus the time spent waiting for
 or holding numba's compiler lock (compiling or loading from the cache, in any thread), which
-numba announces as ``"numba:compiler_lock"`` events. Benchmarks that compare against peers warm up first and
-time with ``time.perf_counter`` directly.
+numba announces as ``"numba:compiler_lock"`` events. Benchmarks that compare against peers
+warm up first and time with ``time.perf_counter`` directly.
 """
 
 from __future__ import annotations
@@ -25,12 +25,12 @@ class _CompilerLockTime(event.Listener):
         self._depth = 0
         self._since = 0.0
 
-    def on_start(self, event) -> None:
+    def on_start(self, ev) -> None:
         if self._depth == 0:
             self._since = time.perf_counter()
         self._depth += 1
 
-    def on_end(self, event) -> None:
+    def on_end(self, ev) -> None:
         self._depth -= 1
         if self._depth == 0:
             self.total += time.perf_counter() - self._since
