@@ -315,11 +315,16 @@ def test_bubbles_never_pass_a_segment_that_dense_sampling_finds_colliding(axes):
     assert 10 < sum(verdicts) < len(verdicts) - 10  # both outcomes are exercised
 
 
-def test_free_bubbles_of_self_pairs_hold():
+@pytest.mark.parametrize("slack", [0.0, 0.01])
+def test_free_bubbles_of_self_pairs_hold(slack):
     """On the folding arm without obstacles (only self pairs count), the bubble of q(s) on a
-    segment, s +- the scaled clearance, holds no colliding configuration."""
+    segment, s +- the scaled clearance, holds no configuration where two balls overlap by more
+    than ``slack`` (m): the balls shrunk by half the slack are free there."""
     model = _arm(("y", "y", "y"))
-    ctx = PlanningContext(model, [], spheres=generate_sphere_model(model, cache=False))
+    balls = generate_sphere_model(model, cache=False)
+    ctx = PlanningContext(model, [], spheres=balls)
+    shrunk = SphereModel(balls.link_names, balls.sphere_link, balls.centers, balls.radii - 0.5 * slack, False)
+    judge = PlanningContext(model, [], spheres=shrunk).spheres
     data, motion = ctx.spheres.data, ctx.motion_arrays(ctx.resolution)
     rng = np.random.default_rng(4)
     qs = model.random_configurations(rng, 400)
@@ -327,11 +332,11 @@ def test_free_bubbles_of_self_pairs_hold():
     for qa, qb in zip(qs[:-1], qs[1:]):
         _scales(qa, qb, data[9], data[-1], motion)
         s = rng.uniform()
-        bubble = SK.clearance(qa + s * (qb - qa), data, ctx.scratch, 1.0, motion[4])
+        bubble = SK.clearance(qa + s * (qb - qa), data, ctx.scratch, 1.0, motion[4], slack)
         if bubble > 0:
             inside = np.linspace(max(s - bubble, 0.0), min(s + bubble, 1.0), 200)
-            assert np.all(ctx.spheres.is_free(qa + inside[:, None] * (qb - qa)))
-            blocked += not np.all(ctx.spheres.is_free(qa + np.linspace(0, 1, 200)[:, None] * (qb - qa)))
+            assert np.all(judge.is_free(qa + inside[:, None] * (qb - qa)))
+            blocked += not np.all(judge.is_free(qa + np.linspace(0, 1, 200)[:, None] * (qb - qa)))
     assert blocked >= 10  # segments whose bubbles had a self-collision to stay clear of
 
 

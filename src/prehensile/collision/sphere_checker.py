@@ -240,7 +240,7 @@ class SphereChecker:
         q = self.model.check_configuration(q)
         flat = np.ascontiguousarray(q.reshape(-1, self.model.dof))
         data, scales = (self.data, self._scales) if self_pairs else self._world_only
-        out = np.array([K.clearance(row, data, self._scratch, float(cap), scales) for row in flat])
+        out = np.array([K.clearance(row, data, self._scratch, float(cap), scales, 0.0) for row in flat])
         if self.static_hit:
             out[:] = -np.inf
         return out.reshape(q.shape[:-1])

@@ -110,20 +110,28 @@ def _chunk_balls(poses, f, centers, cranges, k, wc, placed):
         placed[k] |= 2
 
 
+@njit(cache=True, inline="always")
+def _margin(best, scale, slack):
+    """How far (m) two balls may be apart beyond their radii and still lower the result
+    ``best`` (:func:`clearance`); 0: only a collision counts."""
+    return max(best * scale - slack, 0.0)
+
+
 # no reference counting (``_nrt=False``): the kernel allocates nothing, and the increfs and
 # decrefs numba emits for two dozen array arguments otherwise cost a third of a check
 @njit(cache=True, fastmath=FAST, _nrt=False)
-def clearance(q, data, scratch, cap, scales):
+def clearance(q, data, scratch, cap, scales, slack):
     """Lower bound on the scaled clearance of the robot's balls at configuration q (dof,), capped.
 
-    Returns ``min(cap, min over the tested ball pairs of distance / scale)``: a ball s against
-    an obstacle has scale ``bscale[s]``, two balls of self pair p have scale
+    Returns ``min(cap, min over the tested ball pairs of (distance + slack) / scale)``: a ball
+    s against an obstacle has scale ``bscale[s]``, two balls of self pair p have scale
     ``pscale[p, 0] + pscale[p, 1]``. With a scale that bounds how far a
     ball moves (relative to what it is tested against) per unit of a motion parameter, the
-    result is how far that parameter may change before anything can touch: a "free bubble"
-    (Quinlan 1995) per ball pair. With world scales 1 and pair scales 1/2 it is the clearance
-    in metres. A negative value means a collision (the search stops there; touching balls
-    count as free). ``cap = 0`` gives a plain collision test.
+    result is how far that parameter may change before any ball can come closer than
+    ``-slack`` (m) to anything: with ``slack = 0`` a "free bubble" (Quinlan 1995) per ball
+    pair. With world scales 1, pair scales 1/2 and no slack it is the clearance in metres. A
+    collision returns a negative value, ``distance / scale`` of the pair found (the search
+    stops there; touching balls count as free). ``cap = 0`` gives a plain collision test.
 
     ``data`` = (T_world_base, fparent, fjtype, forigin, faxis, fqidx, fmult, foffset, gframe,
     granges, centers, radii, gbcenter, gbradius, gtest, gchunks, cranges, cbcenter, cbradius,
@@ -165,62 +173,64 @@ def clearance(q, data, scratch, cap, scales):
         i, j = pairs[p, 0], pairs[p, 1]
         fi, fj, both = gframe[i], gframe[j], pscale[p, 0] + pscale[p, 1]
         dx, dy, dz = wb[i, 0] - wb[j, 0], wb[i, 1] - wb[j, 1], wb[i, 2] - wb[j, 2]
-        reach = best * both + gbradius[i] + gbradius[j]
+        reach = _margin(best, both, slack) + gbradius[i] + gbradius[j]
         if dx * dx + dy * dy + dz * dz >= reach * reach:
             continue
         for ki in range(gchunks[i, 0], gchunks[i, 1]):
             _chunk_center(poses, fi, cbcenter, ki, wk, placed)
             dx, dy, dz = wk[ki, 0] - wb[j, 0], wk[ki, 1] - wb[j, 1], wk[ki, 2] - wb[j, 2]
-            reach = best * both + cbradius[ki] + gbradius[j]
+            reach = _margin(best, both, slack) + cbradius[ki] + gbradius[j]
             if dx * dx + dy * dy + dz * dz >= reach * reach:
                 continue
             for kj in range(gchunks[j, 0], gchunks[j, 1]):
                 _chunk_center(poses, fj, cbcenter, kj, wk, placed)
                 dx, dy, dz = wk[ki, 0] - wk[kj, 0], wk[ki, 1] - wk[kj, 1], wk[ki, 2] - wk[kj, 2]
-                reach = best * both + cbradius[ki] + cbradius[kj]
+                reach = _margin(best, both, slack) + cbradius[ki] + cbradius[kj]
                 if dx * dx + dy * dy + dz * dz >= reach * reach:
                     continue
                 _chunk_balls(poses, fi, centers, cranges, ki, wc, placed)
                 _chunk_balls(poses, fj, centers, cranges, kj, wc, placed)
                 for s in range(cranges[ki, 0], cranges[ki, 1]):
                     dx, dy, dz = wc[s, 0] - wk[kj, 0], wc[s, 1] - wk[kj, 1], wc[s, 2] - wk[kj, 2]
-                    reach = best * both + radii[s] + cbradius[kj]
+                    reach = _margin(best, both, slack) + radii[s] + cbradius[kj]
                     if dx * dx + dy * dy + dz * dz >= reach * reach:  # ball s is farther from all of chunk kj
                         continue
                     for t in range(cranges[kj, 0], cranges[kj, 1]):
                         dx, dy, dz = wc[s, 0] - wc[t, 0], wc[s, 1] - wc[t, 1], wc[s, 2] - wc[t, 2]
-                        reach = best * both + radii[s] + radii[t]
+                        reach = _margin(best, both, slack) + radii[s] + radii[t]
                         if dx * dx + dy * dy + dz * dz < reach * reach:
-                            best = (np.sqrt(dx * dx + dy * dy + dz * dz) - radii[s] - radii[t]) / both
-                            if best < 0.0:
-                                return best
+                            d = np.sqrt(dx * dx + dy * dy + dz * dz) - radii[s] - radii[t]
+                            if d < 0.0:
+                                return d / both
+                            best = (d + slack) / both
     for g in range(gframe.shape[0]):
         if not gtest[g]:
             continue
         bx, by, bz, br, f = wb[g, 0], wb[g, 1], wb[g, 2], gbradius[g], gframe[g]
         for o in range(otype.shape[0]):
-            reach = best * gscale[g] + br
+            reach = _margin(best, gscale[g], slack) + br
             if (bx + reach <= oaabb[o, 0] or bx - reach >= oaabb[o, 3] or by + reach <= oaabb[o, 1]
                     or by - reach >= oaabb[o, 4] or bz + reach <= oaabb[o, 2] or bz - reach >= oaabb[o, 5]):
                 continue
             d2, grow = _core_distance2(otype, opose, oparam, o, bx, by, bz)
-            reach = best * gscale[g] + br + grow
+            reach = _margin(best, gscale[g], slack) + br + grow
             if d2 >= reach * reach:
                 continue
             for k in range(gchunks[g, 0], gchunks[g, 1]):
                 _chunk_center(poses, f, cbcenter, k, wk, placed)
                 d2, grow = _core_distance2(otype, opose, oparam, o, wk[k, 0], wk[k, 1], wk[k, 2])
-                reach = best * gscale[g] + cbradius[k] + grow
+                reach = _margin(best, gscale[g], slack) + cbradius[k] + grow
                 if d2 >= reach * reach:
                     continue
                 _chunk_balls(poses, f, centers, cranges, k, wc, placed)
                 for s in range(cranges[k, 0], cranges[k, 1]):
                     d2, grow = _core_distance2(otype, opose, oparam, o, wc[s, 0], wc[s, 1], wc[s, 2])
-                    reach = best * bscale[s] + radii[s] + grow
+                    reach = _margin(best, bscale[s], slack) + radii[s] + grow
                     if d2 < reach * reach:
-                        best = (np.sqrt(d2) - grow - radii[s]) / bscale[s]
-                        if best < 0.0:
-                            return best
+                        d = np.sqrt(d2) - grow - radii[s]
+                        if d < 0.0:
+                            return d / bscale[s]
+                        best = (d + slack) / bscale[s]
     return best
 
 
@@ -240,7 +250,7 @@ def check_batch(qs, data, scratch, scales, out, stop_at_first):
     """
     first = -1
     for b in range(qs.shape[0]):
-        out[b] = clearance(qs[b], data, scratch, 0.0, scales) >= 0.0
+        out[b] = clearance(qs[b], data, scratch, 0.0, scales, 0.0) >= 0.0
         if not out[b] and first < 0:
             first = b
             if stop_at_first:

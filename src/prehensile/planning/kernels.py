@@ -10,10 +10,22 @@ configuration at s with scaled clearance c proves the whole stretch [s - c, s + 
 ball can travel farther than its distance to anything it may hit ("free bubbles", Quinlan
 1995; Vahrenkamp 2011 C.2). The check tests qb first (a planner's new node), then qa, then the
 midpoints of the stretches not yet covered, breadth first (a bisection order, so a collision
-in the middle shows early). Where clearances are small every sample covers at least half a
-resolution step on either side, i.e. the segment is sampled so that no ball moves more than
-``resolution`` between checks (Vahrenkamp 2011 B.2). A free answer is therefore at least as
-strong as sampling at ``resolution``; where the balls keep a distance it is continuous.
+in the middle shows early).
+
+Resolution (Vahrenkamp 2011 B.2). Sampling so that no ball moves more than ``resolution``
+between checks lets a ball overlap what it passes by up to half a resolution step between
+two free samples. The check allows the same and no more, pair by pair: each sample's bubble
+is the stretch over which no ball can move farther than its clearance plus half a resolution
+step (``slack`` of :func:`~prehensile.collision.sphere_kernels.clearance`), and at least the
+stretch over which no ball moves more than half a step. Where only slow balls are near
+anything, samples lie farther apart than the fastest ball's step. A free answer is therefore at
+least as strong as sampling at ``resolution``; where the balls keep a distance it is
+continuous.
+
+The planners' kernels (here, :mod:`~prehensile.planning.rrt_connect`,
+:mod:`~prehensile.planning.shortcut`) are compiled without reference counting
+(``_nrt=False``): they allocate nothing, and numba's atomic reference counts on array views
+and tuples of arrays took about a third of the planning time.
 """
 
 from __future__ import annotations
@@ -35,7 +47,7 @@ def rng_state(rng: np.random.Generator) -> np.ndarray:
     return np.array([rng.integers(0, 2**64 - 1, dtype=np.uint64, endpoint=True)], dtype=np.uint64)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def uniform(state):
     """A float in [0, 1) from the splitmix64 generator with state (1,) uint64 (advanced in place)."""
     state[0] += _GOLDEN
@@ -46,7 +58,15 @@ def uniform(state):
     return (z >> _S11) * (1.0 / 9007199254740992.0)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
+def assign(dst, src):
+    """dst[:] = src (1-d arrays) element by element: kernels compiled without reference
+    counting cannot copy whole rows."""
+    for k in range(src.shape[0]):
+        dst[k] = src[k]
+
+
+@njit(cache=True, _nrt=False)
 def distance(a, b, idx, w):
     """Workspace-weighted distance (m) of configurations a, b (dof,) over the variables idx (n,)
     with weights w (n,)."""
@@ -56,7 +76,7 @@ def distance(a, b, idx, w):
     return d
 
 
-@njit(cache=True, fastmath=FAST)
+@njit(cache=True, fastmath=FAST, _nrt=False)
 def nearest(points, count, x, idx, w, work):
     """(index, distance) of the node nearest to x (dof,) among the first ``count`` nodes, given
     as weighted coordinates ``points`` (n, N): ``points[k, i] = w[k] * q_i[idx[k]]`` (inf for a
@@ -77,7 +97,7 @@ def nearest(points, count, x, idx, w, work):
     return arg, best
 
 
-@njit(cache=True, fastmath=FAST)
+@njit(cache=True, fastmath=FAST, _nrt=False)
 def _scales(qa, qb, granges, pairs, motion):
     """Fill the clearance scales for the segment qa -> qb; returns the farthest any ball moves (m)."""
     Wball, Wgroup, qgroup, pcut, (gscale, pscale, bscale), _, _, dq, below = motion
@@ -111,7 +131,7 @@ FREE, BLOCKED, UNDECIDED = 1, 0, -1  # motion check results
 NO_LIMIT = 1 << 62  # a budget that decides every segment
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def motion_free(qa, qb, res, checker, scratch, motion, counters, budget):
     """Check the segment qa -> qb (dof,) for the sphere model (see the module doc).
 
@@ -128,8 +148,9 @@ def motion_free(qa, qb, res, checker, scratch, motion, counters, budget):
     """
     scales, queue, q = motion[4], motion[5], motion[6]
     longest = _scales(qa, qb, checker[9], checker[-1], motion)
+    slack = 0.5 * res
     counters[0] += 1
-    cover_b = SK.clearance(qb, checker, scratch, _CAP, scales)
+    cover_b = SK.clearance(qb, checker, scratch, _CAP, scales, slack)
     if cover_b < 0.0:
         return BLOCKED
     if longest <= _TINY or cover_b >= 1.0:  # nothing moves, or qb's bubble holds the segment
@@ -139,7 +160,7 @@ def motion_free(qa, qb, res, checker, scratch, motion, counters, budget):
     half = 0.5 * res / longest
     hi = 1.0 - max(cover_b, half)  # negative on a segment shorter than half a step: qa is tested plainly
     counters[0] += 1
-    cover_a = SK.clearance(qa, checker, scratch, min(max(hi, 0.0), _CAP), scales)
+    cover_a = SK.clearance(qa, checker, scratch, min(max(hi, 0.0), _CAP), scales, slack)
     if cover_a < 0.0:
         return BLOCKED
     lo = max(cover_a, half)
@@ -158,7 +179,7 @@ def motion_free(qa, qb, res, checker, scratch, motion, counters, budget):
             q[k] = qa[k] + mid * (qb[k] - qa[k])
         counters[0] += 1
         spent += 1
-        cover = SK.clearance(q, checker, scratch, min(h, _CAP) if h > half else 0.0, scales)
+        cover = SK.clearance(q, checker, scratch, min(h, _CAP) if h > half else 0.0, scales, slack)
         if cover < 0.0:
             return BLOCKED
         r = max(cover, half)

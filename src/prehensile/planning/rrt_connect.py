@@ -45,7 +45,7 @@ from prehensile.planning.certify import CertifyReport, certified_escape, certify
 from prehensile.planning.context import PlanningContext
 from prehensile.planning.cspace import ConfigurationSpace
 from prehensile.planning.kernels import (
-    BLOCKED, FREE, NO_LIMIT, distance, motion_free, nearest, rng_state, uniform,
+    BLOCKED, FREE, NO_LIMIT, assign, distance, motion_free, nearest, rng_state, uniform,
 )
 from prehensile.planning.result import PlanResult, PlanStats, PlanStatus
 from prehensile.planning.shortcut import shortcut
@@ -117,7 +117,7 @@ def _cut(flags, points, t, i):
     points[t, 0, i] = np.inf
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _extend(nodes, parents, flags, points, counters, t, target, near, dist, step, res, budget, idx, w, checker,
             scratch, motion):
     """Step tree t from node ``near`` (at distance ``dist``) toward target; (result, new node)."""
@@ -125,7 +125,7 @@ def _extend(nodes, parents, flags, points, counters, t, target, near, dist, step
     if size == nodes.shape[1]:
         return _NO_ROOM, -1
     new, base = nodes[t, size], nodes[t, near]
-    new[:] = base
+    assign(new, base)
     if dist <= step:
         for k in idx:
             new[k] = target[k]
@@ -142,7 +142,7 @@ def _extend(nodes, parents, flags, points, counters, t, target, near, dist, step
     return (_REACHED if dist <= step else _ADVANCED), size
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _connect(nodes, parents, flags, points, work, counters, t, target, step, res, budget, idx, w, checker, scratch,
              motion):
     """Extend tree t toward target until reached or blocked; (result, last node)."""
@@ -155,7 +155,7 @@ def _connect(nodes, parents, flags, points, work, counters, t, target, step, res
         near, dist = new, distance(nodes[t, new], target, idx, w)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _confirm(nodes, parents, flags, points, counters, t, node, res, checker, scratch, motion):
     """Finish the checks of the edges from tree t's root to node; on a blocked edge cut the
     subtree below it off the tree and return False."""
@@ -174,7 +174,7 @@ def _confirm(nodes, parents, flags, points, counters, t, node, res, checker, scr
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _write_path(nodes, parents, counters, start_node, goal_node, joined, path):
     """path[:m] = start root .. start_node, goal_node .. goal root (goal_node skipped if it is
     the same configuration as start_node); sets PATH_LENGTH and GOAL_ROOT."""
@@ -184,17 +184,17 @@ def _write_path(nodes, parents, counters, start_node, goal_node, joined, path):
     i, k = m, start_node
     while k >= 0:
         i -= 1
-        path[i] = nodes[0, k]
+        assign(path[i], nodes[0, k])
         k = parents[0, k]
     k = parents[1, goal_node] if joined else goal_node
     root = goal_node
     while k >= 0:
-        path[m] = nodes[1, k]
+        assign(path[m], nodes[1, k])
         m, root, k = m + 1, k, parents[1, k]
     counters[PATH_LENGTH], counters[GOAL_ROOT] = m, root
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def search(nodes, parents, flags, points, work, counters, path, rng, iterations, step, res, budget, idx, w, lower,
            upper, sample, checker, scratch, motion):
     """Run up to ``iterations`` RRT-Connect iterations; returns RUNNING, FOUND or FULL.

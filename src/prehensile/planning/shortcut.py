@@ -18,10 +18,10 @@ from numba import njit
 from prehensile.clock import clock
 from prehensile.errors import PrehensileError
 from prehensile.planning.context import PlanningContext
-from prehensile.planning.kernels import FREE, NO_LIMIT, distance, motion_free, rng_state, uniform
+from prehensile.planning.kernels import FREE, NO_LIMIT, assign, distance, motion_free, rng_state, uniform
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _on_segment(a, b, c, idx, w):
     """True if b lies on the segment a -> c (dof,) (up to rounding)."""
     total = distance(a, c, idx, w)
@@ -37,28 +37,28 @@ def _on_segment(a, b, c, idx, w):
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def prune(path, n, idx, w, res, checker, scratch, motion, counters):
     """Drop redundant waypoints of path[:n] in place; returns the new count."""
     m = 1  # collinear (and repeated) waypoints
     for i in range(1, n - 1):
         if not _on_segment(path[m - 1], path[i], path[i + 1], idx, w):
-            path[m] = path[i]
+            assign(path[m], path[i])
             m += 1
-    path[m] = path[n - 1]
+    assign(path[m], path[n - 1])
     n = m + 1
     k = 1  # waypoints whose neighbours see each other
     while k < n - 1:
         if motion_free(path[k - 1], path[k + 1], res, checker, scratch, motion, counters, NO_LIMIT) == FREE:
             for j in range(k, n - 1):
-                path[j] = path[j + 1]
+                assign(path[j], path[j + 1])
             n -= 1
         else:
             k += 1
     return n
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def simplify(path, n, iterations, first, last, rng, idx, w, res, checker, scratch, motion, counters, cum, qa, qb):
     """Prune path[:n] in place if ``first``, make ``iterations`` random shortcut attempts, prune
     again if ``last``; returns the new count. Rows of ``path`` must be >= n + iterations;
@@ -92,12 +92,12 @@ def simplify(path, n, iterations, first, last, rng, idx, w, res, checker, scratc
         tail, old = i + 3, j + 1
         if tail > old:
             for k in range(n - 1, old - 1, -1):
-                path[k + tail - old] = path[k]
+                assign(path[k + tail - old], path[k])
         elif tail < old:
             for k in range(old, n):
-                path[k + tail - old] = path[k]
-        path[i + 1] = qa
-        path[i + 2] = qb
+                assign(path[k + tail - old], path[k])
+        assign(path[i + 1], qa)
+        assign(path[i + 2], qb)
         n += tail - old
     if last:
         n = prune(path, n, idx, w, res, checker, scratch, motion, counters)
