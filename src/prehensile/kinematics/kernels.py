@@ -86,7 +86,7 @@ def joint_transform(jtype, value, x, y, z, o00, o01, o02, o03, o10, o11, o12, o1
     return o00, o01, o02, o03, o10, o11, o12, o13, o20, o21, o22, o23
 
 
-@njit(cache=True, fastmath=FAST)
+@njit(cache=True, fastmath=FAST, _nrt=False)
 def fk_into(q, T_world_base, table, out):
     """Poses of all links for one configuration q (dof,) into out (L, 4, 4).
 
@@ -115,7 +115,7 @@ def fk_into(q, T_world_base, table, out):
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def fk_batch_into(q, T_world_base, table, out):
     """Poses for q (B, dof) into out (B, L, 4, 4); returns the first row index holding a
     NaN or infinity, or -1."""
@@ -142,7 +142,7 @@ def joint_column(jtype, m, x, y, z, r00, r01, r02, r10, r11, r12, r20, r21, r22,
     return wx, wy, wz, 0.0, 0.0, 0.0
 
 
-@njit(cache=True, fastmath=FAST)
+@njit(cache=True, fastmath=FAST, _nrt=False)
 def jacobian_into(poses, link, point, table, out):
     """World-axes frame Jacobian (6, dof) of ``point`` (3,), given in ``link``'s frame.
 

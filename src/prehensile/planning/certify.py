@@ -262,7 +262,7 @@ class ExactCertifier:
             safe[due[:m]], early[due[:m]] = here[:m] + d, 0.5 * d + 1e-12  # (rounding: reached exactly is due)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _next_due(path, arc, seg, step, safe, early, res, position, poses, T_world_base, table, pair_a, pair_o, pair_b,
               part_link, ball_center, ball_radius, boxes, lrange, ccenter, cradius, otype, opose, oparam, orange,
               near, stats, due, here, bound, q):
@@ -333,7 +333,7 @@ def _next_due(path, arc, seg, step, safe, early, res, position, poses, T_world_b
             stats[1] = min(stats[1], bound[k])
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _cover_distance(poses, la, lb, o, lrange, ccenter, cradius, otype, opose, oparam, orange):
     """Lower bound (m) of the distance of link la's geometry to obstacle o (o >= 0), or to link
     lb's geometry: the least distance between their covering balls (link balls ``lrange``
