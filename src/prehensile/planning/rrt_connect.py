@@ -79,7 +79,7 @@ class RRTConnectSettings:
             balls on the links that collided, else at half the resolution each), before giving
             up with CERTIFICATION_FAILED.
         escape: an endpoint within the limits that the sphere model rejects, or holds less
-            than half the resolution from the world, gets a short straight escape motion
+            than half the resolution from anything, gets a short straight escape motion
             certified on the exact geometry (:func:`~prehensile.planning.certify.certified_escape`)
             as its first tree edge: the conservative balls of a grasp in contact range of the
             object would otherwise make it unreachable.
@@ -295,8 +295,8 @@ def _endpoints(ctx: PlanningContext, qs: np.ndarray, toward: np.ndarray, setting
     its certified escape node [(escape, 0, _CHECKED)] (moving toward ``toward`` (k, dof)); None
     if it is unusable (outside the limits, or colliding for the balls without an escape)."""
     inside = ctx.model.within_limits(qs)
-    valid = inside & ctx.spheres.is_free(qs)
-    tight = inside & (ctx.spheres.clearance(qs, ctx.resolution, self_pairs=False) < 0.5 * ctx.resolution)
+    clear = ctx.spheres.clearance(qs, ctx.resolution)
+    valid, tight = inside & (clear >= 0.0), inside & (clear < 0.5 * ctx.resolution)
     out: list[list | None] = []
     for i, q in enumerate(qs):
         escape = None
@@ -414,7 +414,7 @@ class RRTConnectSearch:
                 return None, -1
             per_iteration = (now - begun) / max(trees.counters[ITERATIONS] - before, 1)
             # a quarter of the time left, growing at most twofold (iterations slow down as trees grow)
-            chunk = int(np.clip(0.25 * (deadline - now) / max(per_iteration, 1e-7), 1, 2 * chunk))
+            chunk = int(min(max(0.25 * (deadline - now) / max(per_iteration, 1e-7), 1), 2 * chunk))
 
     def solve(self, time_budget_s: float) -> PlanResult:
         """Search for up to ``time_budget_s`` (s) more, from where the last call stopped.
