@@ -79,7 +79,7 @@ class RRTConnectSettings:
             balls on the links that collided, else at half the resolution each), before giving
             up with CERTIFICATION_FAILED.
         escape: an endpoint within the limits that the sphere model rejects, or holds less
-            than half the resolution from anything, gets a short straight escape motion
+            than half the resolution from the world, gets a short straight escape motion
             certified on the exact geometry (:func:`~prehensile.planning.certify.certified_escape`)
             as its first tree edge: the conservative balls of a grasp in contact range of the
             object would otherwise make it unreachable.
@@ -295,8 +295,8 @@ def _endpoints(ctx: PlanningContext, qs: np.ndarray, toward: np.ndarray, setting
     its certified escape node [(escape, 0, _CHECKED)] (moving toward ``toward`` (k, dof)); None
     if it is unusable (outside the limits, or colliding for the balls without an escape)."""
     inside = ctx.model.within_limits(qs)
-    clear = ctx.spheres.clearance(qs, ctx.resolution)
-    valid, tight = inside & (clear >= 0.0), inside & (clear < 0.5 * ctx.resolution)
+    valid = inside & ctx.spheres.is_free(qs)
+    tight = inside & (ctx.spheres.clearance(qs, ctx.resolution, self_pairs=False) < 0.5 * ctx.resolution)
     out: list[list | None] = []
     for i, q in enumerate(qs):
         escape = None
