@@ -112,8 +112,8 @@ def _chunk_balls(poses, f, centers, cranges, k, wc, placed):
 
 @njit(cache=True, inline="always")
 def _margin(best, scale, slack):
-    """How far (m) two balls may be apart beyond their radii and still lower the result
-    ``best`` (:func:`clearance`); 0: only a collision counts."""
+    """How far apart (m) a ball and what it is tested against may be, beyond touching, and
+    still lower ``best`` (:func:`clearance`); 0: only a collision counts."""
     return max(best * scale - slack, 0.0)
 
 

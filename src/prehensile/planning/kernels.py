@@ -25,7 +25,7 @@ continuous.
 The planners' kernels (here, :mod:`~prehensile.planning.rrt_connect`,
 :mod:`~prehensile.planning.shortcut`) are compiled without reference counting
 (``_nrt=False``): they allocate nothing, and numba's atomic reference counts on array views
-and tuples of arrays took about a third of the planning time.
+and tuples of arrays took about a quarter of the planning time.
 """
 
 from __future__ import annotations
