@@ -157,7 +157,7 @@ def motion_free(qa, qb, res, checker, scratch, motion, counters, budget):
         return FREE
     if budget < 2:
         return UNDECIDED
-    half = 0.5 * res / longest
+    half = slack / longest  # the stretch over which no ball moves more than half a step
     hi = 1.0 - max(cover_b, half)  # negative on a segment shorter than half a step: qa is tested plainly
     counters[0] += 1
     cover_a = SK.clearance(qa, checker, scratch, min(max(hi, 0.0), _CAP), scales, slack)
