@@ -1,4 +1,5 @@
-"""Sphere models: generated and padded balls cover the collision geometry; disk cache."""
+"""Sphere models: generated and padded balls cover the collision geometry; disk cache; the
+sphere checker's clearance is the exact ball-to-obstacle distance."""
 
 from __future__ import annotations
 
@@ -8,12 +9,16 @@ import numpy as np
 import pytest
 
 from prehensile.collision import spheres as spheres_module
+from prehensile.collision.acm import rigid_bodies
+from prehensile.collision.sphere_checker import SphereChecker
 from prehensile.collision.sphere_fit import geometry_triangles
+from prehensile.collision.world import Obstacle
 from prehensile.collision.spheres import (
     SphereModel, generate_sphere_model, pad_sphere_model, spheres_from_urdf,
 )
 from prehensile.model import load_urdf
 from prehensile.model.builder import JointSpec, LinkSpec, build_model
+from prehensile.kinematics import forward_kinematics
 from prehensile.model.geometry import Box, Capsule, Cylinder, Geometry, Mesh, Sphere
 from prehensile.spatial import make_pose, rpy_to_matrix
 
@@ -148,3 +153,51 @@ def test_cache_round_trip(tmp_path, monkeypatch):
     assert second.link_names == first.link_names
     with pytest.raises(AssertionError):  # other parameters: another key, so a new fit
         generate_sphere_model(model, n_spheres=4)
+
+
+def _ball_to_obstacle(centers: np.ndarray, radii: np.ndarray, obstacle: Obstacle) -> np.ndarray:
+    """(S,) distance (m) from balls (S, 3), (S,) to a primitive obstacle; negative inside."""
+    T = np.asarray(obstacle.T_world_shape)
+    local = (centers - T[:3, 3]) @ T[:3, :3]
+    shape = obstacle.shape
+    if isinstance(shape, Sphere):
+        return np.linalg.norm(local, axis=1) - shape.radius - radii
+    if isinstance(shape, Box):
+        return np.linalg.norm(np.maximum(np.abs(local) - np.asarray(shape.size) / 2, 0.0), axis=1) - radii
+    half = shape.length / 2
+    if isinstance(shape, Cylinder):
+        radial = np.maximum(np.linalg.norm(local[:, :2], axis=1) - shape.radius, 0.0)
+        return np.hypot(radial, np.maximum(np.abs(local[:, 2]) - half, 0.0)) - radii
+    axis_point = np.zeros_like(local)
+    axis_point[:, 2] = np.clip(local[:, 2], -half, half)
+    return np.linalg.norm(local - axis_point, axis=1) - shape.radius - radii
+
+
+def test_world_clearance_is_the_exact_ball_distance():
+    """The pruning hierarchy (bounding balls against obstacle boxes, chunks, balls) loses
+    nothing: clearance against the world equals the brute-force minimum over every moving
+    ball and every obstacle, for rotated boxes, cylinders, capsules and spheres."""
+    model = _primitive_robot()
+    tilt = make_pose(rpy_to_matrix([0.5, 0.3, -0.7]), [0.35, 0.2, 0.55])
+    obstacles = [
+        Obstacle("box", Box((0.3, 0.1, 0.2)), tilt),
+        Obstacle("cyl", Cylinder(0.05, 0.4), make_pose(rpy_to_matrix([1.2, 0.0, 0.4]), [-0.3, 0.3, 0.6])),
+        Obstacle("cap", Capsule(0.04, 0.3), make_pose(rpy_to_matrix([0.0, 0.9, 0.2]), [0.1, -0.4, 0.7])),
+        Obstacle("ball", Sphere(0.07), make_pose(position=[-0.2, -0.3, 0.35])),
+    ]
+    checker = SphereChecker(model, obstacles)
+    balls = checker.spheres
+    moving = rigid_bodies(model)[balls.sphere_link] != rigid_bodies(model)[0]  # the root body's balls never move
+    q = model.random_configurations(np.random.default_rng(4), 400)
+    poses = forward_kinematics(model, q)[:, balls.sphere_link[moving]]
+    centers = np.einsum("nsij,sj->nsi", poses[..., :3, :3], balls.centers[moving]) + poses[..., :3, 3]
+    each = np.array([[_ball_to_obstacle(c, balls.radii[moving], o).min() for o in obstacles] for c in centers])
+    truth = each.min(axis=1)
+    clearance = checker.clearance(q, self_pairs=False)
+    free = truth >= 0.0
+    assert 20 < free.sum() < len(q) - 20  # free and colliding configurations
+    assert set(np.argmin(each[free], axis=1)) == set(range(len(obstacles)))  # every shape is nearest somewhere
+    assert np.allclose(clearance[free], truth[free], atol=1e-9)
+    assert np.all(clearance[~free] < 0.0)
+    capped = checker.clearance(q[free], cap=0.05, self_pairs=False)
+    assert np.allclose(capped, np.minimum(truth[free], 0.05), atol=1e-9)

@@ -32,7 +32,7 @@ def obstacle_arrays(obstacles: Sequence[Obstacle], mesh_spheres: int = 32) -> di
 
     Returns:
         dict with ``otype`` (O,) int64, ``opose`` (O, 3, 4), ``oparam`` (O, 3), ``oaabb``
-        (O, 6) (m) and ``oname`` (O,) names; mesh obstacles expand into ``mesh_spheres`` balls.
+        (6, O) (m; rows: min xyz, max xyz) and ``oname`` (O,) names; mesh obstacles expand into ``mesh_spheres`` balls.
     """
     types, poses, params, names = [], [], [], []
     for obstacle in obstacles:
@@ -61,7 +61,7 @@ def obstacle_arrays(obstacles: Sequence[Obstacle], mesh_spheres: int = 32) -> di
     otype = np.array(types, dtype=np.int64)
     opose = np.array(poses, dtype=float).reshape(-1, 3, 4)
     oparam = np.array(params, dtype=float).reshape(-1, 3)
-    oaabb = np.zeros((len(otype), 6))
+    oaabb = np.zeros((6, len(otype)))
     for o in range(len(otype)):
         R, p, (a, b, c) = opose[o, :, :3], opose[o, :, 3], oparam[o]
         if otype[o] == K.SPHERE:
@@ -72,7 +72,7 @@ def obstacle_arrays(obstacles: Sequence[Obstacle], mesh_spheres: int = 32) -> di
             half = a * np.sqrt(np.clip(1.0 - R[:, 2] ** 2, 0.0, 1.0)) + b * np.abs(R[:, 2])
         else:
             half = b * np.abs(R[:, 2]) + a
-        oaabb[o] = np.concatenate([p - half, p + half])
+        oaabb[:, o] = np.concatenate([p - half, p + half])
     return {"otype": otype, "opose": np.ascontiguousarray(opose), "oparam": oparam, "oaabb": oaabb,
             "oname": np.array(names, dtype=object)}
 
@@ -240,9 +240,11 @@ class SphereChecker:
         q = self.model.check_configuration(q)
         flat = np.ascontiguousarray(q.reshape(-1, self.model.dof))
         data, scales = (self.data, self._scales) if self_pairs else self._world_only
-        out = np.array([K.clearance(row, data, self._scratch, float(cap), scales, 0.0) for row in flat])
+        out = np.empty(len(flat))
         if self.static_hit:
             out[:] = -np.inf
+        else:
+            K.clearance_batch(flat, data, self._scratch, float(cap), scales, out)
         return out.reshape(q.shape[:-1])
 
     def first_collision(self, q_path: np.ndarray) -> int:

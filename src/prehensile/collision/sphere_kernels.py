@@ -3,7 +3,7 @@
 Obstacles are flat arrays: ``otype`` (O,) (SPHERE, BOX, CYLINDER, CAPSULE), ``opose`` (O, 3, 4)
 the rotation and origin of each shape in the world, ``oparam`` (O, 3) (sphere: radius; box:
 half sides; cylinder and capsule: radius, half length of the z-axis segment) and ``oaabb``
-(O, 6) world box (min xyz, max xyz). Every distance is exact for a ball against the solid shape.
+(6, O) world boxes (rows: min xyz, max xyz). Every distance is exact for a ball against the solid shape.
 
 Forward kinematics runs only over the moving rigid bodies ("frames"); balls of links fixed to
 a body are stored in that body's frame. Everything a kernel needs is one tuple ``data`` (see
@@ -85,12 +85,14 @@ def _place(poses, f, c, i, out, k):
 
 def make_scratch(data):
     """Work arrays for :func:`clearance` with the arrays ``data``: (poses, balls, groups'
-    bounding balls, chunks' bounding balls, chunk flags), world coordinates."""
-    T_world_base, fparent, centers, gframe, cranges = data[0], data[1], data[11], data[8], data[16]
+    bounding balls, chunks' bounding balls, chunk flags), world coordinates, and the squared
+    distances of a bounding ball to the obstacles' boxes."""
+    T_world_base, fparent, centers, gframe, cranges, otype = data[0], data[1], data[11], data[8], data[16], data[19]
     poses = np.empty((fparent.shape[0] + 1, 4, 4))  # poses[0] = base, frame f at f + 1
     poses[0] = T_world_base
     return (poses, np.empty((max(centers.shape[0], 1), 3)), np.empty((max(gframe.shape[0], 1), 3)),
-            np.empty((max(cranges.shape[0], 1), 3)), np.zeros(max(cranges.shape[0], 1), dtype=np.int64))
+            np.empty((max(cranges.shape[0], 1), 3)), np.zeros(max(cranges.shape[0], 1), dtype=np.int64),
+            np.empty(max(otype.shape[0], 1)))
 
 
 @njit(cache=True, inline="always")
@@ -155,7 +157,7 @@ def clearance(q, data, scratch, cap, scales, slack):
     """
     (_, fparent, fjtype, forigin, faxis, fqidx, fmult, foffset, gframe, granges, centers, radii, gbcenter, gbradius,
      gtest, gchunks, cranges, cbcenter, cbradius, otype, opose, oparam, oaabb, pairs) = data
-    poses, wc, wb, wk, placed = scratch
+    poses, wc, wb, wk, placed, gap2 = scratch
     gscale, pscale, bscale = scales
     best = cap
     g = 0
@@ -207,10 +209,14 @@ def clearance(q, data, scratch, cap, scales, slack):
         if not gtest[g]:
             continue
         bx, by, bz, br, f = wb[g, 0], wb[g, 1], wb[g, 2], gbradius[g], gframe[g]
+        for o in range(otype.shape[0]):  # branch-free, so it runs in SIMD lanes
+            ex = max(oaabb[0, o] - bx, bx - oaabb[3, o], 0.0)
+            ey = max(oaabb[1, o] - by, by - oaabb[4, o], 0.0)
+            ez = max(oaabb[2, o] - bz, bz - oaabb[5, o], 0.0)
+            gap2[o] = ex * ex + ey * ey + ez * ez
         for o in range(otype.shape[0]):
             reach = _margin(best, gscale[g], slack) + br
-            if (bx + reach <= oaabb[o, 0] or bx - reach >= oaabb[o, 3] or by + reach <= oaabb[o, 1]
-                    or by - reach >= oaabb[o, 4] or bz + reach <= oaabb[o, 2] or bz - reach >= oaabb[o, 5]):
+            if gap2[o] >= reach * reach:  # the bounding ball is farther than reach from the box
                 continue
             d2, grow = _core_distance2(otype, opose, oparam, o, bx, by, bz)
             reach = _margin(best, gscale[g], slack) + br + grow
@@ -237,6 +243,13 @@ def clearance(q, data, scratch, cap, scales, slack):
 def unit_scales(data) -> tuple:
     """Scales for :func:`clearance` that make it the clearance in metres."""
     return np.ones(data[13].shape[0]), np.full((data[-1].shape[0], 2), 0.5), np.ones(data[11].shape[0])
+
+
+@njit(cache=True, fastmath=FAST)
+def clearance_batch(qs, data, scratch, cap, scales, out):
+    """out[b] = :func:`clearance` of qs[b] without slack, for configurations qs (B, dof); out (B,)."""
+    for b in range(qs.shape[0]):
+        out[b] = clearance(qs[b], data, scratch, cap, scales, 0.0)
 
 
 @njit(cache=True, fastmath=FAST)

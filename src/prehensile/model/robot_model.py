@@ -204,7 +204,7 @@ class RobotModel:
     def within_limits(self, q: np.ndarray, tol: float = 1e-9) -> np.ndarray:
         """(*batch,) bool: q of shape (*batch, dof) lies within the position limits."""
         q = np.asarray(q, dtype=float)
-        return np.all((q >= self.lower - tol) & (q <= self.upper + tol), axis=-1)
+        return ((q >= self.lower - tol) & (q <= self.upper + tol)).all(axis=-1)
 
     def check_configuration(self, q: np.ndarray, what: str = "q") -> np.ndarray:
         """Validate q of shape (*batch, dof): right length and finite; returns it as float64."""
@@ -216,7 +216,7 @@ class RobotModel:
                 f"{what}: expected shape (..., {self.dof}) for robot '{self.name}' "
                 f"(joints: {', '.join(self.joint_names)}), got {q.shape}"
             )
-        if not np.all(np.isfinite(q)):
+        if not np.isfinite(q).all():
             raise PrehensileError(f"{what}: contains NaN or infinite values")
         return q
 

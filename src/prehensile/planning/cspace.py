@@ -139,4 +139,4 @@ class ConfigurationSpace:
     def path_length(self, path: np.ndarray) -> float:
         """Workspace-weighted length (m) of a path of active vectors (N, n)."""
         path = np.asarray(path, float)
-        return float(np.sum(np.abs(np.diff(path, axis=0)) @ self.weights)) if len(path) > 1 else 0.0
+        return float((np.abs(path[1:] - path[:-1]) @ self.weights).sum())

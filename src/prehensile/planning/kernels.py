@@ -44,7 +44,7 @@ _S30, _S27, _S31, _S11 = np.uint64(30), np.uint64(27), np.uint64(31), np.uint64(
 
 def rng_state(rng: np.random.Generator) -> np.ndarray:
     """(1,) uint64 state of the compiled generator, drawn from ``rng`` (same rng seed, same stream)."""
-    return np.array([rng.integers(0, 2**64 - 1, dtype=np.uint64, endpoint=True)], dtype=np.uint64)
+    return rng.bit_generator.random_raw(1)
 
 
 @njit(cache=True, _nrt=False)

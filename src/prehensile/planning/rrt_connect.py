@@ -352,7 +352,7 @@ class RRTConnectSearch:
             raise PrehensileError(f"rrt_connect: q_goal must be ({model.dof},) or (k, {model.dof}), got {goals.shape}")
         goals = goals.reshape(-1, model.dof)
         fixed = space.fixed
-        if np.any(np.abs(goals[:, fixed] - self.start[fixed]) > 1e-9):
+        if len(fixed) and (np.abs(goals[:, fixed] - self.start[fixed]) > 1e-9).any():
             raise PrehensileError("rrt_connect: goal and start differ in joints that are not planned "
                                   f"({', '.join(model.joint_names[i] for i in fixed)})")
         first = len(self.goals)
