@@ -19,6 +19,7 @@ from prehensile.planning import (
 from prehensile.collision import sphere_kernels as SK
 from prehensile.planning.context import ball_joint_weights
 from prehensile.planning.kernels import _scales
+from prehensile.planning.shortcut import prune
 from prehensile.spatial import make_pose
 
 from conftest import MBM, require_shared
@@ -271,8 +272,24 @@ def test_shortcut_never_lengthens_nor_invalidates(arm):
         np.testing.assert_array_equal(short[-1], goal)
         assert ctx.space.path_length(short) <= length + 1e-9
         assert all(ctx.check_motion(a, b) for a, b in zip(short[:-1], short[1:]))
+    # pruning again spends no check on the pairs of waypoints found blocked before
+    work = (ctx.space.indices, ctx.space.weights, ctx.resolution, ctx.spheres.data, ctx.scratch,
+            ctx.motion_arrays(ctx.resolution))
+    path, ids, memo = detour.copy(), np.arange(len(detour)), np.full((len(detour), 2), -1)
+    n = prune(path, ids, memo, len(detour), *work, np.zeros(1, int))
+    again = []
+    for remembered in (memo, np.full_like(memo, -1)):
+        spent = np.zeros(1, int)
+        q, i = path[:n].copy(), ids[:n].copy()
+        again.append((prune(q, i, remembered.copy(), n, *work, spent), spent[0]))
+    assert again[0][0] == again[1][0] and again[0][1] < again[1][1]
+    empty = PlanningContext(model, [], spheres=spheres)
     straight = np.array([start, 0.5 * (start + goal), goal])  # collinear: pruned without a check
-    assert len(shortcut(PlanningContext(model, [], spheres=spheres), straight, rng)) == 2
+    assert len(shortcut(empty, straight, rng)) == 2
+    corner = np.array([start, [0.9, 0.1, 0.1], goal])  # monotone joints: the corner saves no length
+    spent = np.zeros(1, int)
+    np.testing.assert_array_equal(shortcut(empty, corner, rng, stats=spent), corner)
+    assert spent[0] == 0
 
 
 @pytest.mark.parametrize("axes", [("z", "y", "x"), ("x", "z", "y")])
