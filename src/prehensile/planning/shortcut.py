@@ -10,10 +10,11 @@ evaluations, a free one covers the whole segment, so few free checks are the che
 step lengthens the path (the straight segment is never longer than any path between its ends,
 in any norm), and every new segment passes :func:`~prehensile.planning.kernels.motion_free`.
 
-Checks are spent only where they pay: a segment is tried only if it shortens the path by more
-than ``_MIN_GAIN`` of its length (in the L1 metric many corners save nothing), and the pairs of
-input waypoints found blocked by the first pruning are remembered, not checked again by the
-last (the check is deterministic).
+Checks are spent only where they pay: a random shortcut is tried only if it shortens the path
+by more than ``_MIN_GAIN`` of its length (in the L1 metric many shortcuts save nothing), and
+the pairs of input waypoints found blocked by the first pruning are remembered, not checked
+again by the last (the check is deterministic). Pruning tries every corner, even one that
+saves no length: a trajectory stops at each corner (:mod:`~prehensile.planning.trajectory`).
 """
 
 from __future__ import annotations
@@ -45,7 +46,7 @@ def _on_segment(a, b, c, idx, w):
 
 
 _WINDOW = 16  # waypoints ahead that pruning tries to reach (bounds its checks to linear)
-_MIN_GAIN = 3e-3  # fraction of the path length a segment must save to be worth a check
+_MIN_GAIN = 3e-3  # fraction of the path length a random shortcut must save to be worth a check
 
 
 @njit(cache=True, _nrt=False)
@@ -83,18 +84,11 @@ def prune(path, ids, memo, n, idx, w, res, checker, scratch, motion, counters):
             m += 1
     _move(path, ids, m, n - 1)
     n = m + 1
-    total = 0.0
-    for i in range(n - 1):
-        total += distance(path[i], path[i + 1], idx, w)
     a, m = 0, 1  # from the anchor a, the farthest waypoint b it sees goes to row m (m <= a + 1 <= b)
     while a < n - 1:
         b = min(n - 1, a + _WINDOW)
         while b > a + 1:
-            along = 0.0
-            for i in range(a, b):
-                along += distance(path[i], path[i + 1], idx, w)
-            if (along - distance(path[a], path[b], idx, w) > _MIN_GAIN * total
-                    and not _blocked(memo, ids[a], ids[b], False)):
+            if not _blocked(memo, ids[a], ids[b], False):
                 if motion_free(path[a], path[b], res, checker, scratch, motion, counters, NO_LIMIT) == FREE:
                     break
                 _blocked(memo, ids[a], ids[b], True)
