@@ -19,7 +19,7 @@ from prehensile.planning import (
 from prehensile.collision import sphere_kernels as SK
 from prehensile.planning.context import ball_joint_weights
 from prehensile.planning.kernels import _scales
-from prehensile.planning.shortcut import prune
+from prehensile.planning.shortcut import prune, waypoint_marks
 from prehensile.spatial import make_pose
 
 from conftest import MBM, require_shared
@@ -86,6 +86,20 @@ def test_plans_around_a_wall_and_every_edge_is_free(arm):
     assert len(result.path) >= 3
     for a, b in zip(result.path[:-1], result.path[1:]):
         assert ctx.check_motion(a, b)
+
+
+@pytest.mark.parametrize("prune", [True, False])
+def test_provisional_edges_are_checked_before_a_path_is_returned(arm, prune):
+    """With one eager evaluation per edge most tree edges stay provisional; those the pruning
+    keeps (or all, without pruning) must be checked in full before the path is returned."""
+    model, spheres = arm
+    ctx = PlanningContext(model, [_box("wall", [0.55, 0.25, 0.1], [0.1, 0.3, 0.3])], spheres=spheres)
+    start, goal = np.array([0.0, 0.2, 0.0]), np.array([1.2, -0.3, 0.4])
+    settings = RRTConnectSettings(eager_checks=1, shortcut=prune, shortcut_iterations=0, certify=False)
+    for seed in range(8):
+        path = rrt_connect(ctx, start, goal, settings, np.random.default_rng(seed)).path
+        np.testing.assert_array_equal(path[[0, -1]], [start, goal])
+        assert all(ctx.check_motion(a, b) for a, b in zip(path[:-1], path[1:]))
 
 
 def test_direct_edge_is_taken_when_free(arm):
@@ -275,17 +289,21 @@ def test_shortcut_never_lengthens_nor_invalidates(arm):
     # pruning again spends no check on the pairs of waypoints found blocked before
     work = (ctx.space.indices, ctx.space.weights, ctx.resolution, ctx.spheres.data, ctx.scratch,
             ctx.motion_arrays(ctx.resolution))
-    path, ids, memo = detour.copy(), np.arange(len(detour)), np.full((len(detour), 2), -1)
-    n = prune(path, ids, memo, len(detour), *work, np.zeros(1, int))
+    path, (ids, checked, memo) = detour.copy(), waypoint_marks(len(detour))
+    ids[:] = np.arange(len(detour))
+    n = prune(path, len(detour), (ids, checked, memo), *work, np.zeros(1, int))
     again = []
     for remembered in (memo, np.full_like(memo, -1)):
         spent = np.zeros(1, int)
-        q, i = path[:n].copy(), ids[:n].copy()
-        again.append((prune(q, i, remembered.copy(), n, *work, spent), spent[0]))
+        marks = (ids[:n].copy(), checked[:n].copy(), remembered.copy())
+        again.append((prune(path[:n].copy(), n, marks, *work, spent), spent[0]))
     assert again[0][0] == again[1][0] and again[0][1] < again[1][1]
     empty = PlanningContext(model, [], spheres=spheres)
     straight = np.array([start, 0.5 * (start + goal), goal])  # collinear: pruned without a check
     assert len(shortcut(empty, straight, rng)) == 2
+    ids, checked, memo = waypoint_marks(3)
+    checked[:2] = True, False  # an edge merged from collinear ones is checked only if they all were
+    assert prune(straight.copy(), 3, (ids, checked, memo), *work, np.zeros(1, int)) == 2 and not checked[0]
     corner = np.array([start, [0.9, 0.1, 0.1], goal])  # monotone joints: saves no length, still cut
     np.testing.assert_array_equal(shortcut(empty, corner, rng), corner[[0, 2]])
 

@@ -13,7 +13,9 @@ first.
 Edges are checked lazily (Bohlin & Kavraki 2000; the lazy checking of Vahrenkamp 2011 C.2):
 a new edge gets ``eager_checks`` clearance evaluations (its end first, then bisection, which
 finds most collisions); undecided edges stay provisional until they lie on a path between the
-trees, are then checked in full, and a blocked one cuts its subtree off the tree.
+trees. That path is pruned first (:func:`~prehensile.planning.shortcut.prune`: its
+replacement edges are checked in full), and only the provisional edges that survive pruning
+are then checked in full; a blocked one cuts its subtree off the tree and the search goes on.
 
 Endpoints in contact range of obstacles (grasps) may be rejected by the conservative balls
 although the exact geometry is free; they get a short escape motion certified exactly
@@ -25,7 +27,8 @@ time budget between them (chunks sized from the measured time per iteration); al
 does not depend on where the chunks end. Trees start small and double when full, up to
 ``max_nodes``.
 
-Afterwards the path is shortcut (:func:`~prehensile.planning.shortcut.shortcut`) and
+Afterwards the path is shortcut (:func:`~prehensile.planning.shortcut.shortcut`, random
+attempts and a last pruning) and
 certified on the exact geometry (:func:`~prehensile.planning.certify.certify_path`). A path
 that fails certification is discarded and the search repeats: if the context's balls do not
 cover the geometry, with covering balls on the links that collided
@@ -48,7 +51,7 @@ from prehensile.planning.kernels import (
     BLOCKED, FREE, NO_LIMIT, assign, distance, motion_free, nearest, rng_state, uniform,
 )
 from prehensile.planning.result import PlanResult, PlanStats, PlanStatus
-from prehensile.planning.shortcut import shortcut
+from prehensile.planning.shortcut import prune, shortcut, waypoint_marks
 
 RUNNING, FOUND, FULL = 0, 1, 2  # kernel results
 _TRAPPED, _ADVANCED, _REACHED, _NO_ROOM = 0, 1, 2, 3  # extension results
@@ -156,28 +159,14 @@ def _connect(nodes, parents, flags, points, work, counters, t, target, step, res
 
 
 @njit(cache=True, _nrt=False)
-def _confirm(nodes, parents, flags, points, counters, t, node, res, checker, scratch, motion):
-    """Finish the checks of the edges from tree t's root to node; on a blocked edge cut the
-    subtree below it off the tree and return False."""
-    k = node
-    while parents[t, k] >= 0:
-        if not flags[t, k] & _CHECKED:
-            if motion_free(nodes[t, parents[t, k]], nodes[t, k], res, checker, scratch, motion, counters,
-                           NO_LIMIT) != FREE:
-                _cut(flags, points, t, k)
-                for i in range(k + 1, counters[SIZE + t]):  # children come after their parents
-                    if flags[t, parents[t, i]] & _DEAD:
-                        _cut(flags, points, t, i)
-                return False
-            flags[t, k] |= _CHECKED
-        k = parents[t, k]
-    return True
-
-
-@njit(cache=True, _nrt=False)
-def _write_path(nodes, parents, counters, start_node, goal_node, joined, path):
+def _write_path(nodes, parents, flags, counters, start_node, goal_node, joined, path, marks, owner):
     """path[:m] = start root .. start_node, goal_node .. goal root (goal_node skipped if it is
-    the same configuration as start_node); sets PATH_LENGTH and GOAL_ROOT."""
+    the same configuration as start_node); returns m and sets GOAL_ROOT. Edge i (path[i] ->
+    path[i + 1]) is the tree edge ``owner[i] = t * capacity + node`` (node's edge from its
+    parent in tree t; -1 for a direct edge between the trees); ``marks`` (:func:`~prehensile.planning.shortcut.waypoint_marks`) get ids
+    0 .. m - 1, the edges' checked flags from the trees and an empty memo."""
+    ids, checked, memo = marks
+    capacity = nodes.shape[1]
     m, k = 0, start_node
     while k >= 0:
         m, k = m + 1, parents[0, k]
@@ -185,18 +174,68 @@ def _write_path(nodes, parents, counters, start_node, goal_node, joined, path):
     while k >= 0:
         i -= 1
         assign(path[i], nodes[0, k])
+        if i > 0:
+            owner[i - 1], checked[i - 1] = k, flags[0, k] & _CHECKED != 0
         k = parents[0, k]
-    k = parents[1, goal_node] if joined else goal_node
+    k, edge = (parents[1, goal_node], goal_node) if joined else (goal_node, -1)
+    owner[m - 1], checked[m - 1] = -1, True  # unless joined, the edge between the trees is a checked direct edge
     root = goal_node
     while k >= 0:
+        if edge >= 0:
+            owner[m - 1], checked[m - 1] = capacity + edge, flags[1, edge] & _CHECKED != 0
         assign(path[m], nodes[1, k])
-        m, root, k = m + 1, k, parents[1, k]
-    counters[PATH_LENGTH], counters[GOAL_ROOT] = m, root
+        m, root, edge, k = m + 1, k, k, parents[1, k]
+    counters[GOAL_ROOT] = root
+    for i in range(m):
+        ids[i] = i
+    for i in range(memo.shape[0]):
+        memo[i, 0] = memo[i, 1] = -1
+    return m
 
 
 @njit(cache=True, _nrt=False)
-def search(nodes, parents, flags, points, work, counters, path, rng, iterations, step, res, budget, idx, w, lower,
-           upper, sample, checker, scratch, motion):
+def _confirm(nodes, parents, flags, points, counters, n, marks, owner, res, checker, scratch, motion):
+    """Finish the checks of the tree edges behind the unchecked edges of path[:n] (see
+    :func:`_write_path`); on a blocked one cut the subtree below it off its tree and return False."""
+    ids, checked, _ = marks
+    capacity = nodes.shape[1]
+    for i in range(n - 1):
+        if checked[i]:
+            continue
+        for e in range(ids[i], ids[i + 1]):  # the collinear tree edges this edge stands for
+            t, k = owner[e] // capacity, owner[e] % capacity
+            if owner[e] < 0 or flags[t, k] & _CHECKED:
+                continue
+            if motion_free(nodes[t, parents[t, k]], nodes[t, k], res, checker, scratch, motion, counters,
+                           NO_LIMIT) != FREE:
+                _cut(flags, points, t, k)
+                for j in range(k + 1, counters[SIZE + t]):  # children come after their parents
+                    if flags[t, parents[t, j]] & _DEAD:
+                        _cut(flags, points, t, j)
+                return False
+            flags[t, k] |= _CHECKED
+    return True
+
+
+@njit(cache=True, _nrt=False)
+def _finish(nodes, parents, flags, points, counters, start_node, goal_node, joined, path, marks, owner, prune_path,
+            idx, w, res, checker, scratch, motion):
+    """Write the path between the trees through start_node and goal_node, prune it (if
+    ``prune_path``), then finish the checks of the tree edges left in it; True (and
+    PATH_LENGTH set) if they are free. Pruning first spares the checks of the many tree edges
+    that pruning drops."""
+    n = _write_path(nodes, parents, flags, counters, start_node, goal_node, joined, path, marks, owner)
+    if prune_path:
+        n = prune(path, n, marks, idx, w, res, checker, scratch, motion, counters)
+    if not _confirm(nodes, parents, flags, points, counters, n, marks, owner, res, checker, scratch, motion):
+        return False
+    counters[PATH_LENGTH] = n
+    return True
+
+
+@njit(cache=True, _nrt=False)
+def search(nodes, parents, flags, points, work, counters, path, marks, owner, prune_path, rng, iterations, step, res,
+           budget, idx, w, lower, upper, sample, checker, scratch, motion):
     """Run up to ``iterations`` RRT-Connect iterations; returns RUNNING, FOUND or FULL.
 
     Tree 0 (start) and tree 1 (goals) hold nodes (2, capacity, dof) with parents (2,
@@ -210,15 +249,17 @@ def search(nodes, parents, flags, points, work, counters, path, rng, iterations,
     edge leaves).
     ``sample`` (dof,) holds the values of the joints not planned; ``lower``, ``upper`` (n,)
     bound the sampled joints ``idx``. ``budget``: see ``RRTConnectSettings.eager_checks``. On
-    FOUND, path[:counters[PATH_LENGTH]] is the path (path rows >= 2 * capacity).
+    FOUND, path[:counters[PATH_LENGTH]] is the path, pruned if ``prune_path`` (rows of path,
+    marks and owner >= 2 * capacity; see :func:`_finish`).
     """
     first, counters[DIRECT] = counters[DIRECT], counters[SIZE + 1]
     for a in range(counters[START_NODES]):
         for g in range(first, counters[SIZE + 1]):
             if not (flags[0, a] | flags[1, g]) & _DEAD and motion_free(
                     nodes[0, a], nodes[1, g], res, checker, scratch, motion, counters, NO_LIMIT) == FREE:
-                _write_path(nodes, parents, counters, a, g, False, path)
-                return FOUND
+                if _finish(nodes, parents, flags, points, counters, a, g, False, path, marks, owner, prune_path, idx,
+                           w, res, checker, scratch, motion):
+                    return FOUND
     for _ in range(iterations):
         t = counters[ITERATIONS] % 2
         counters[ITERATIONS] += 1
@@ -238,9 +279,8 @@ def search(nodes, parents, flags, points, work, counters, path, rng, iterations,
             return FULL
         if result == _REACHED:
             start_node, goal_node = (new, other) if t == 0 else (other, new)
-            if (_confirm(nodes, parents, flags, points, counters, 0, start_node, res, checker, scratch, motion)
-                    and _confirm(nodes, parents, flags, points, counters, 1, goal_node, res, checker, scratch, motion)):
-                _write_path(nodes, parents, counters, start_node, goal_node, True, path)
+            if _finish(nodes, parents, flags, points, counters, start_node, goal_node, True, path, marks, owner,
+                       prune_path, idx, w, res, checker, scratch, motion):
                 return FOUND
     return RUNNING
 
@@ -254,7 +294,8 @@ class _Trees:
         self.parents = np.full((2, capacity), -1, dtype=np.int64)
         self.flags = np.zeros((2, capacity), dtype=np.int64)
         self.points, self.work = np.empty((2, space.n, capacity)), np.empty(capacity)
-        self.path = np.empty((2 * capacity, dof))
+        self.path, self.marks, self.owner = np.empty((2 * capacity, dof)), waypoint_marks(2 * capacity), \
+            np.empty(2 * capacity, dtype=np.int64)
         self.counters = np.zeros(8, dtype=np.int64)
         self.append(0, start_nodes)
         self.counters[START_NODES] = len(start_nodes)
@@ -286,6 +327,7 @@ class _Trees:
         points[:, :, :capacity] = self.points
         self.nodes, self.parents, self.flags, self.points = nodes, parents, flags, points
         self.path, self.work = np.empty((2 * bigger, nodes.shape[2])), np.empty(bigger)
+        self.marks, self.owner = waypoint_marks(2 * bigger), np.empty(2 * bigger, dtype=np.int64)
         return True
 
 
@@ -405,8 +447,9 @@ class RRTConnectSearch:
         while True:
             begun, before = clock(), trees.counters[ITERATIONS]
             code = search(trees.nodes, trees.parents, trees.flags, trees.points, trees.work, trees.counters, trees.path,
-                          self.state, chunk, settings.step, self.res, settings.eager_checks, space.indices,
-                          space.weights, *work)
+                          trees.marks, trees.owner, settings.shortcut, self.state, chunk, settings.step, self.res,
+                          settings.eager_checks, space.indices, space.weights, *work)
+            trees.counters[DIRECT] = trees.counters[SIZE + 1]  # the nodes the search added are no goals
             now = clock()
             if code == FOUND:
                 return trees.path[:trees.counters[PATH_LENGTH]].copy(), int(trees.counters[GOAL_ROOT])
@@ -453,7 +496,7 @@ class RRTConnectSearch:
             if settings.shortcut:
                 begun = clock()
                 path = shortcut(self.context, path, self.rng, settings.shortcut_iterations, settings.shortcut_time_s,
-                                self.res, checks)
+                                self.res, checks, prune_first=False)  # the search pruned it
                 totals["simplify_time_s"] += clock() - begun
             space = self.context.space
             info = {"attempts": attempt + 1, "length": space.path_length(path[:, space.indices]),

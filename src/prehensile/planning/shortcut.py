@@ -49,17 +49,26 @@ _WINDOW = 16  # waypoints ahead that pruning tries to reach (bounds its checks t
 _MIN_GAIN = 3e-3  # fraction of the path length a random shortcut must save to be worth a check
 
 
+def waypoint_marks(rows: int) -> tuple:
+    """Work arrays of :func:`prune` for up to ``rows`` waypoints: ids (rows,) int64 (the input
+    waypoint behind a row, -1 for a shortcut point), checked (rows,) bool (the edge from the
+    row to the next passed a motion check) and memo (rows, 2) int64 (pairs of ids found
+    blocked, rows of -1 free)."""
+    return np.full(rows, -1, dtype=np.int64), np.ones(rows, dtype=np.bool_), np.full((rows, 2), -1, dtype=np.int64)
+
+
 @njit(cache=True, _nrt=False)
-def _move(path, ids, dst, src):
-    """Row and id src -> dst."""
+def _move(path, marks, dst, src):
+    """Row src -> dst, with its id and edge flag."""
+    ids, checked, _ = marks
     assign(path[dst], path[src])
-    ids[dst] = ids[src]
+    ids[dst], checked[dst] = ids[src], checked[src]
 
 
 @njit(cache=True, _nrt=False)
 def _blocked(memo, a, b, record):
-    """Whether the pair of input waypoint ids (a, b) is in ``memo`` (rows (a, b), free rows -1);
-    with ``record``, add it (if there is room). Ids -1 (shortcut points) are never remembered."""
+    """Whether the pair of input waypoint ids (a, b) is in ``memo``; with ``record``, add it (if
+    there is room). Ids -1 (shortcut points) are never remembered."""
     if a < 0 or b < 0:
         return False
     for r in range(memo.shape[0]):
@@ -73,41 +82,49 @@ def _blocked(memo, a, b, record):
 
 
 @njit(cache=True, _nrt=False)
-def prune(path, ids, memo, n, idx, w, res, checker, scratch, motion, counters):
-    """Drop redundant waypoints of path[:n] (ids[:n] along) in place; returns the new count.
-    ``ids`` (rows,) are input waypoint indices (-1: shortcut point), ``memo`` (m, 2) the
-    blocked pairs of ids remembered across calls."""
+def prune(path, n, marks, idx, w, res, checker, scratch, motion, counters):
+    """Drop redundant waypoints of path[:n] in place; returns the new count.
+
+    ``marks`` (:func:`waypoint_marks`) move along with the rows. An edge that replaces
+    collinear ones is checked if they all were; an edge found by a motion check is checked.
+    Blocked pairs of ids are remembered in the memo and not checked again (across calls).
+    """
+    ids, checked, memo = marks
     m = 1  # collinear (and repeated) waypoints
     for i in range(1, n - 1):
-        if not _on_segment(path[m - 1], path[i], path[i + 1], idx, w):
-            _move(path, ids, m, i)
+        if _on_segment(path[m - 1], path[i], path[i + 1], idx, w):
+            checked[m - 1] &= checked[i]
+        else:
+            _move(path, marks, m, i)
             m += 1
-    _move(path, ids, m, n - 1)
+    _move(path, marks, m, n - 1)
     n = m + 1
-    a, m = 0, 1  # from the anchor a, the farthest waypoint b it sees goes to row m (m <= a + 1 <= b)
+    a, m = 0, 1  # from the anchor a (row m - 1), the farthest waypoint b it sees goes to row m (m <= a + 1 <= b)
     while a < n - 1:
         b = min(n - 1, a + _WINDOW)
         while b > a + 1:
             if not _blocked(memo, ids[a], ids[b], False):
                 if motion_free(path[a], path[b], res, checker, scratch, motion, counters, NO_LIMIT) == FREE:
+                    checked[m - 1] = True
                     break
                 _blocked(memo, ids[a], ids[b], True)
             b -= 1
-        _move(path, ids, m, b)
+        _move(path, marks, m, b)
         m += 1
         a = b
     return m
 
 
 @njit(cache=True, _nrt=False)
-def simplify(path, ids, memo, n, iterations, first, last, rng, idx, w, res, checker, scratch, motion, counters,
-             cum, qa, qb):
+def simplify(path, n, marks, iterations, first, last, rng, idx, w, res, checker, scratch, motion, counters, cum, qa,
+             qb):
     """Prune path[:n] in place if ``first``, make ``iterations`` random shortcut attempts, prune
     again if ``last``; returns the new count. Rows of ``path`` must be >= n + iterations;
-    ``ids`` and ``memo`` as for :func:`prune`; ``cum`` (rows,), qa and qb (dof,) are work arrays,
-    ``rng`` the (1,) uint64 state."""
+    ``marks`` as for :func:`prune`; ``cum`` (rows,), qa and qb (dof,) are work arrays, ``rng``
+    the (1,) uint64 state."""
+    ids, checked, _ = marks
     if first:
-        n = prune(path, ids, memo, n, idx, w, res, checker, scratch, motion, counters)
+        n = prune(path, n, marks, idx, w, res, checker, scratch, motion, counters)
     for _ in range(iterations):
         if n < 3:
             break
@@ -131,26 +148,27 @@ def simplify(path, ids, memo, n, iterations, first, last, rng, idx, w, res, chec
             continue
         if motion_free(qa, qb, res, checker, scratch, motion, counters, NO_LIMIT) != FREE:
             continue
-        # path[:i+1], qa, qb, path[j+1:n]: j - i waypoints out, two in
-        tail, old = i + 3, j + 1
+        # path[:i+1], qa, qb, path[j+1:n]: j - i waypoints out, two in; qb -> path[j + 1] is part of edge j
+        tail, old, rest_checked = i + 3, j + 1, checked[j]
         if tail > old:
             for k in range(n - 1, old - 1, -1):
-                _move(path, ids, k + tail - old, k)
+                _move(path, marks, k + tail - old, k)
         elif tail < old:
             for k in range(old, n):
-                _move(path, ids, k + tail - old, k)
+                _move(path, marks, k + tail - old, k)
         assign(path[i + 1], qa)
         assign(path[i + 2], qb)
         ids[i + 1], ids[i + 2] = -1, -1
+        checked[i + 1], checked[i + 2] = True, rest_checked
         n += tail - old
     if last:
-        n = prune(path, ids, memo, n, idx, w, res, checker, scratch, motion, counters)
+        n = prune(path, n, marks, idx, w, res, checker, scratch, motion, counters)
     return n
 
 
 def shortcut(ctx: PlanningContext, path: np.ndarray, rng: np.random.Generator, iterations: int = 100,
              time_budget_s: float = 0.05, resolution: float | None = None,
-             stats: np.ndarray | None = None) -> np.ndarray:
+             stats: np.ndarray | None = None, prune_first: bool = True) -> np.ndarray:
     """A shorter path with the same ends: pruning, random shortcuts, pruning.
 
     Args:
@@ -161,6 +179,7 @@ def shortcut(ctx: PlanningContext, path: np.ndarray, rng: np.random.Generator, i
         time_budget_s: stop the random attempts after this time (s).
         resolution: edge-check resolution (m); default ``ctx.resolution``.
         stats: optional (1,) int64 counter of clearance evaluations (incremented).
+        prune_first: prune before the random attempts (False for a path pruned already).
 
     Returns:
         (M, dof) waypoints, M <= N + iterations, first and last equal to the input's.
@@ -177,8 +196,8 @@ def shortcut(ctx: PlanningContext, path: np.ndarray, rng: np.random.Generator, i
     iterations = int(iterations)
     buffer = np.empty((len(path) + iterations, ctx.model.dof))
     buffer[:len(path)] = path
-    ids, memo = np.full(len(buffer), -1, dtype=np.int64), np.full((len(buffer), 2), -1, dtype=np.int64)
-    ids[:len(path)] = np.arange(len(path))
+    marks = waypoint_marks(len(buffer))
+    marks[0][:len(path)] = np.arange(len(path))
     work = (ctx.space.indices, ctx.space.weights, res, ctx.spheres.data, ctx.scratch, ctx.motion_arrays(res),
             np.zeros(1, dtype=np.int64) if stats is None else stats, np.empty(len(buffer)),
             np.empty(ctx.model.dof), np.empty(ctx.model.dof))
@@ -187,11 +206,11 @@ def shortcut(ctx: PlanningContext, path: np.ndarray, rng: np.random.Generator, i
     while True:  # chunks of random attempts (64, 64, 128, ...) until done or out of time
         count = min(max(64, done), iterations - done)
         last = done + count >= iterations
-        n = simplify(buffer, ids, memo, n, count, done == 0, last, state, *work)
+        n = simplify(buffer, n, marks, count, prune_first and done == 0, last, state, *work)
         done += count
         if last:
             break
         if clock() - start >= time_budget_s:
-            n = simplify(buffer, ids, memo, n, 0, False, True, state, *work)
+            n = simplify(buffer, n, marks, 0, False, True, state, *work)
             break
     return buffer[:n].copy()
