@@ -163,8 +163,9 @@ def _write_path(nodes, parents, flags, counters, start_node, goal_node, joined, 
     """path[:m] = start root .. start_node, goal_node .. goal root (goal_node skipped if it is
     the same configuration as start_node); returns m and sets GOAL_ROOT. Edge i (path[i] ->
     path[i + 1]) is the tree edge ``owner[i] = t * capacity + node`` (node's edge from its
-    parent in tree t; -1 for a direct edge between the trees); ``marks`` (:func:`~prehensile.planning.shortcut.waypoint_marks`) get ids
-    0 .. m - 1, the edges' checked flags from the trees and an empty memo."""
+    parent in tree t; -1 for a direct edge between the trees). ``marks``
+    (:func:`~prehensile.planning.shortcut.waypoint_marks`) get ids 0 .. m - 1, the edges'
+    checked flags from the trees and an empty memo."""
     ids, checked, memo = marks
     capacity = nodes.shape[1]
     m, k = 0, start_node
@@ -178,7 +179,7 @@ def _write_path(nodes, parents, flags, counters, start_node, goal_node, joined, 
             owner[i - 1], checked[i - 1] = k, flags[0, k] & _CHECKED != 0
         k = parents[0, k]
     k, edge = (parents[1, goal_node], goal_node) if joined else (goal_node, -1)
-    owner[m - 1], checked[m - 1] = -1, True  # unless joined, the edge between the trees is a checked direct edge
+    owner[m - 1], checked[m - 1] = -1, True  # not joined: a direct edge, checked
     root = goal_node
     while k >= 0:
         if edge >= 0:
@@ -244,7 +245,8 @@ def search(nodes, parents, flags, points, work, counters, path, marks, owner, pr
     ``counters[SIZE:SIZE + 2]``. The first ``counters[START_NODES]`` nodes of tree 0 are the
     start and its escape node; goals (roots with their escape nodes) may be appended to tree 1
     between calls, and the direct edges from the start nodes to the goal nodes from
-    ``counters[DIRECT]`` on are tried first.
+    ``counters[DIRECT]`` on are tried first (the caller advances it to the tree's size after a
+    call, past the goals tried and the nodes the search added).
     Nodes flagged _DEAD are never extended (cut off, or a root that only its certified escape
     edge leaves).
     ``sample`` (dof,) holds the values of the joints not planned; ``lower``, ``upper`` (n,)
@@ -252,9 +254,8 @@ def search(nodes, parents, flags, points, work, counters, path, marks, owner, pr
     FOUND, path[:counters[PATH_LENGTH]] is the path, pruned if ``prune_path`` (rows of path,
     marks and owner >= 2 * capacity; see :func:`_finish`).
     """
-    first, counters[DIRECT] = counters[DIRECT], counters[SIZE + 1]
     for a in range(counters[START_NODES]):
-        for g in range(first, counters[SIZE + 1]):
+        for g in range(counters[DIRECT], counters[SIZE + 1]):
             if not (flags[0, a] | flags[1, g]) & _DEAD and motion_free(
                     nodes[0, a], nodes[1, g], res, checker, scratch, motion, counters, NO_LIMIT) == FREE:
                 if _finish(nodes, parents, flags, points, counters, a, g, False, path, marks, owner, prune_path, idx,
@@ -449,7 +450,7 @@ class RRTConnectSearch:
             code = search(trees.nodes, trees.parents, trees.flags, trees.points, trees.work, trees.counters, trees.path,
                           trees.marks, trees.owner, settings.shortcut, self.state, chunk, settings.step, self.res,
                           settings.eager_checks, space.indices, space.weights, *work)
-            trees.counters[DIRECT] = trees.counters[SIZE + 1]  # the nodes the search added are no goals
+            trees.counters[DIRECT] = trees.counters[SIZE + 1]  # only goals added later get direct edges
             now = clock()
             if code == FOUND:
                 return trees.path[:trees.counters[PATH_LENGTH]].copy(), int(trees.counters[GOAL_ROOT])

@@ -12,8 +12,8 @@ in any norm), and every new segment passes :func:`~prehensile.planning.kernels.m
 
 Checks are spent only where they pay: a random shortcut is tried only if it shortens the path
 by more than ``_MIN_GAIN`` of its length (in the L1 metric many shortcuts save nothing), and
-the pairs of input waypoints found blocked by the first pruning are remembered, not checked
-again by the last (the check is deterministic). Pruning tries every corner, even one that
+the pairs of input waypoints found blocked by one pruning are remembered, not checked again
+by the next (the check is deterministic). Pruning tries every corner, even one that
 saves no length: a trajectory stops at each corner (:mod:`~prehensile.planning.trajectory`).
 """
 
