@@ -240,6 +240,11 @@ def test_path_failing_certification_is_planned_again_on_the_cover(arm):
     _check_result(ctx, result, start, goal)
     assert result.info["attempts"] >= 2 and set(result.info["refined"]) <= {"l1", "l2", "l3"}
     assert result.info["refined"]
+    # with one retry left, it covers every link at once
+    once = rrt_connect(ctx, start, goal, RRTConnectSettings(time_budget_s=2.0, certify_retries=1),
+                       np.random.default_rng(0))
+    _check_result(ctx, once, start, goal)
+    assert once.info["attempts"] == 2 and {"l1", "l2", "l3"} <= set(once.info["refined"])
     mixed = ctx.refined({"l2"}).sphere_model
     for link, balls in (("l1", thin), ("l2", spheres), ("l3", thin)):
         np.testing.assert_array_equal(mixed.link_spheres(link)[1], balls.link_spheres(link)[1])

@@ -79,8 +79,8 @@ class RRTConnectSettings:
         shortcut_time_s: time limit (s) of the random shortcut attempts.
         certify: certify the path on the exact geometry before returning SUCCESS.
         certify_retries: searches repeated after a path failed certification (with covering
-            balls on the links that collided, else at half the resolution each), before giving
-            up with CERTIFICATION_FAILED.
+            balls on the links that collided, the last one on every link; else at half the
+            resolution each), before giving up with CERTIFICATION_FAILED.
         escape: an endpoint within the limits that the sphere model rejects, or holds less
             than half the resolution from the world, gets a short straight escape motion
             certified on the exact geometry (:func:`~prehensile.planning.certify.certified_escape`)
@@ -429,10 +429,14 @@ class RRTConnectSearch:
             self.escapes = len(start) - 1
             self._add_goal_nodes(0, goal_nodes)
 
-    def _start_over(self, report: CertifyReport) -> None:
+    def _start_over(self, report: CertifyReport, last: bool) -> None:
         """After a path failed certification: new trees, with covering balls on the links that
-        collided (:meth:`PlanningContext.refined`), else at half the resolution."""
+        collided (:meth:`PlanningContext.refined`; for the ``last`` search on every link with
+        balls), else at half the resolution."""
         self.refined |= set(report.colliding_links)
+        if last:  # each failure may show one more link: do not run out of retries link by link
+            balls = self.ctx.sphere_model
+            self.refined |= {balls.link_names[i] for i in np.unique(balls.sphere_link)}
         finer = self.ctx.refined(self.refined)
         self.context, self.res = (self.context, 0.5 * self.res) if finer is None or finer is self.context \
             else (finer, self.res)
@@ -510,7 +514,7 @@ class RRTConnectSearch:
                 totals["collision_checks"] += int(checks[0])
                 return PlanResult(PlanStatus.SUCCESS, path, PlanStats(**totals), goal_index=self.goal_row[root],
                                   info=info)
-            self._start_over(report)
+            self._start_over(report, last=attempt + 1 == settings.certify_retries)
             if clock() >= deadline:
                 break
         totals["collision_checks"] += int(checks[0])
