@@ -32,7 +32,8 @@ def obstacle_arrays(obstacles: Sequence[Obstacle], mesh_spheres: int = 32) -> di
 
     Returns:
         dict with ``otype`` (O,) int64, ``opose`` (O, 3, 4), ``oparam`` (O, 3), ``oaabb``
-        (6, O) (m; rows: min xyz, max xyz) and ``oname`` (O,) names; mesh obstacles expand into ``mesh_spheres`` balls.
+        (6, O) (m; rows: min xyz, max xyz) and ``oname`` (O,) names; mesh obstacles expand
+        into ``mesh_spheres`` balls.
     """
     types, poses, params, names = [], [], [], []
     for obstacle in obstacles:

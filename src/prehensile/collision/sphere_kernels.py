@@ -3,7 +3,8 @@
 Obstacles are flat arrays: ``otype`` (O,) (SPHERE, BOX, CYLINDER, CAPSULE), ``opose`` (O, 3, 4)
 the rotation and origin of each shape in the world, ``oparam`` (O, 3) (sphere: radius; box:
 half sides; cylinder and capsule: radius, half length of the z-axis segment) and ``oaabb``
-(6, O) world boxes (rows: min xyz, max xyz). Every distance is exact for a ball against the solid shape.
+(6, O) world boxes (rows: min xyz, max xyz). Every distance is exact for a ball against the
+solid shape.
 
 Forward kinematics runs only over the moving rigid bodies ("frames"); balls of links fixed to
 a body are stored in that body's frame. Everything a kernel needs is one tuple ``data`` (see
