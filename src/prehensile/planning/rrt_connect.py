@@ -71,8 +71,11 @@ class RRTConnectSettings:
         step: extension step (m, workspace-weighted metric).
         eager_checks: clearance evaluations spent on a new tree edge before it is kept
             provisionally; the rest of the check happens once the edge lies on a path between
-            the trees (lazy collision checking: most blocked edges show within a few checks,
-            most free ones are never needed). A large value checks every edge at once.
+            the trees and survives its pruning (lazy collision checking: most blocked edges
+            show within a few checks, most free ones are never needed). A large value checks
+            every edge at once. 4 spends the fewest evaluations on the MotionBenchMaker Panda
+            problems (search evaluations, median over 400: 470 at 3, 472 at 4, 498 at 6, 524
+            at 8; mean 2587, 2126, 2226, 2412).
         max_nodes: nodes per tree.
         shortcut: simplify the path (:func:`~prehensile.planning.shortcut.shortcut`).
         shortcut_iterations: random shortcut attempts.
@@ -90,7 +93,7 @@ class RRTConnectSettings:
 
     time_budget_s: float = 1.0
     step: float = 1.0
-    eager_checks: int = 8
+    eager_checks: int = 4
     max_nodes: int = 100_000
     shortcut: bool = True
     shortcut_iterations: int = 16
