@@ -408,3 +408,22 @@ def test_mbm_problems_give_certified_exact_paths():
             strict = RRTConnectSettings(time_budget_s=0.2, escape=False)
             assert rrt_connect(ctx, start, goal, strict).status is PlanStatus.INVALID_GOAL
     assert solved == 5 and escaped == 1
+
+
+def test_mbm_search_paths_pass_the_sphere_motion_check():
+    """Every edge of a search's path passes the motion check on the balls, the goal tree's
+    provisional edges too when a direct edge from the start reaches a node the goal tree grew
+    (with these settings, the 52nd cage problem returned such an edge unchecked, and blocked)."""
+    require_shared(MBM)
+    from prehensile.benchmarking.mbm import MBMSettings, PreparedProblem, benchmark_spheres, load_problems
+    from prehensile.model import load_urdf
+
+    folder = MBM / "panda"
+    model = load_urdf(folder / "panda.urdf", folder / "panda.srdf")
+    spheres = benchmark_spheres(model, folder / "panda_spherized.urdf")
+    cage = [p for p in load_problems(folder / "problems.tar.bz2", model, 52) if p.scenario == "cage_panda"][51]
+    prepared = PreparedProblem(model, spheres, cage, MBMSettings())
+    ctx = prepared.ctx
+    settings = RRTConnectSettings(time_budget_s=2.0, eager_checks=8, shortcut=False, certify=False)
+    path = rrt_connect(ctx, prepared.q_start, prepared.q_goal, settings, np.random.default_rng(251)).path
+    assert len(path) >= 2 and all(ctx.check_motion(a, b) for a, b in zip(path[:-1], path[1:]))
