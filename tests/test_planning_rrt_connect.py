@@ -303,6 +303,14 @@ def test_shortcut_never_lengthens_nor_invalidates(arm):
         marks = (ids[:n].copy(), checked[:n].copy(), remembered.copy())
         again.append((prune(path[:n].copy(), n, marks, *work, spent), spent[0]))
     assert again[0][0] == again[1][0] and again[0][1] < again[1][1]
+    # ... also when the shortcut is handed the marks of the pruning the path had
+    handed = []
+    for remembered in (memo, np.full_like(memo, -1)):
+        spent = np.zeros(1, int)
+        short = shortcut(ctx, path[:n], np.random.default_rng(1), 4, stats=spent, pruned=(ids, checked, remembered))
+        handed.append((short, spent[0]))
+    np.testing.assert_array_equal(handed[0][0], handed[1][0])
+    assert handed[0][1] < handed[1][1]
     empty = PlanningContext(model, [], spheres=spheres)
     straight = np.array([start, 0.5 * (start + goal), goal])  # collinear: pruned without a check
     assert len(shortcut(empty, straight, rng)) == 2

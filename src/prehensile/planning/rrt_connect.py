@@ -504,7 +504,7 @@ class RRTConnectSearch:
             if settings.shortcut:
                 begun = clock()
                 path = shortcut(self.context, path, self.rng, settings.shortcut_iterations, settings.shortcut_time_s,
-                                self.res, checks, prune_first=False)  # the search pruned it
+                                self.res, checks, pruned=self.trees.marks)
                 totals["simplify_time_s"] += clock() - begun
             space = self.context.space
             info = {"attempts": attempt + 1, "length": space.path_length(path[:, space.indices]),

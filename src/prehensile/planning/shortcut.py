@@ -168,7 +168,7 @@ def simplify(path, n, marks, iterations, first, last, rng, idx, w, res, checker,
 
 def shortcut(ctx: PlanningContext, path: np.ndarray, rng: np.random.Generator, iterations: int = 100,
              time_budget_s: float = 0.05, resolution: float | None = None,
-             stats: np.ndarray | None = None, prune_first: bool = True) -> np.ndarray:
+             stats: np.ndarray | None = None, pruned: tuple | None = None) -> np.ndarray:
     """A shorter path with the same ends: pruning, random shortcuts, pruning.
 
     Args:
@@ -179,7 +179,9 @@ def shortcut(ctx: PlanningContext, path: np.ndarray, rng: np.random.Generator, i
         time_budget_s: stop the random attempts after this time (s).
         resolution: edge-check resolution (m); default ``ctx.resolution``.
         stats: optional (1,) int64 counter of clearance evaluations (incremented).
-        prune_first: prune before the random attempts (False for a path pruned already).
+        pruned: the marks (:func:`waypoint_marks`) of a pruning the path has had already, rows
+            matching it: it is not pruned again first, and the pairs found blocked then are
+            not checked again.
 
     Returns:
         (M, dof) waypoints, M <= N + iterations, first and last equal to the input's.
@@ -196,8 +198,9 @@ def shortcut(ctx: PlanningContext, path: np.ndarray, rng: np.random.Generator, i
     iterations = int(iterations)
     buffer = np.empty((len(path) + iterations, ctx.model.dof))
     buffer[:len(path)] = path
-    marks = waypoint_marks(len(buffer))
-    marks[0][:len(path)] = np.arange(len(path))
+    ids, checked, memo = waypoint_marks(len(buffer))
+    ids[:len(path)] = np.arange(len(path)) if pruned is None else pruned[0][:len(path)]
+    marks = (ids, checked, memo if pruned is None else pruned[2].copy())
     work = (ctx.space.indices, ctx.space.weights, res, ctx.spheres.data, ctx.scratch, ctx.motion_arrays(res),
             np.zeros(1, dtype=np.int64) if stats is None else stats, np.empty(len(buffer)),
             np.empty(ctx.model.dof), np.empty(ctx.model.dof))
@@ -206,7 +209,7 @@ def shortcut(ctx: PlanningContext, path: np.ndarray, rng: np.random.Generator, i
     while True:  # chunks of random attempts (64, 64, 128, ...) until done or out of time
         count = min(max(64, done), iterations - done)
         last = done + count >= iterations
-        n = simplify(buffer, n, marks, count, prune_first and done == 0, last, state, *work)
+        n = simplify(buffer, n, marks, count, pruned is None and done == 0, last, state, *work)
         done += count
         if last:
             break
