@@ -25,19 +25,20 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from prehensile.kinematics.kernels import FAST, joint_transform
+from prehensile.kinematics.kernels import FAST, joint_transform_sincos, sincos_into
 
 SPHERE, BOX, CYLINDER, CAPSULE = 0, 1, 2, 3
 
 
 @njit(cache=True, inline="always")
-def _link_pose(poses, pp, origin, f, jtype, axis, value, out):
-    """poses[out] (top 3 rows) = poses[pp] @ origin[f] @ motion (:func:`joint_transform`).
+def _link_pose(poses, pp, origin, f, jtype, axis, joint, out):
+    """poses[out] (top 3 rows) = poses[pp] @ origin[f] @ motion (:func:`joint_transform_sincos`
+    of the joint value, its sine and cosine ``joint[:, f]``).
 
     Arrays are indexed in place (no views), which keeps numba from reference counting.
     """
-    l00, l01, l02, l03, l10, l11, l12, l13, l20, l21, l22, l23 = joint_transform(
-        jtype, value, axis[f, 0], axis[f, 1], axis[f, 2],
+    l00, l01, l02, l03, l10, l11, l12, l13, l20, l21, l22, l23 = joint_transform_sincos(
+        jtype, joint[0, f], joint[1, f], joint[2, f], axis[f, 0], axis[f, 1], axis[f, 2],
         origin[f, 0, 0], origin[f, 0, 1], origin[f, 0, 2], origin[f, 0, 3],
         origin[f, 1, 0], origin[f, 1, 1], origin[f, 1, 2], origin[f, 1, 3],
         origin[f, 2, 0], origin[f, 2, 1], origin[f, 2, 2], origin[f, 2, 3])
@@ -86,14 +87,15 @@ def _place(poses, f, c, i, out, k):
 
 def make_scratch(data):
     """Work arrays for :func:`clearance` with the arrays ``data``: (poses, balls, groups'
-    bounding balls, chunks' bounding balls, chunk flags), world coordinates, and the squared
-    distances of a bounding ball to the obstacles' boxes."""
+    bounding balls, chunks' bounding balls, chunk flags), world coordinates, the squared
+    distances of a bounding ball to the obstacles' boxes, and the frames' joint values, sines
+    and cosines (3, F)."""
     T_world_base, fparent, centers, gframe, cranges, otype = data[0], data[1], data[11], data[8], data[16], data[19]
     poses = np.empty((fparent.shape[0] + 1, 4, 4))  # poses[0] = base, frame f at f + 1
     poses[0] = T_world_base
     return (poses, np.empty((max(centers.shape[0], 1), 3)), np.empty((max(gframe.shape[0], 1), 3)),
             np.empty((max(cranges.shape[0], 1), 3)), np.zeros(max(cranges.shape[0], 1), dtype=np.int64),
-            np.empty(max(otype.shape[0], 1)))
+            np.empty(max(otype.shape[0], 1)), np.zeros((3, fparent.shape[0])))
 
 
 @njit(cache=True, inline="always")
@@ -158,15 +160,15 @@ def clearance(q, data, scratch, cap, scales, slack):
     """
     (_, fparent, fjtype, forigin, faxis, fqidx, fmult, foffset, gframe, granges, centers, radii, gbcenter, gbradius,
      gtest, gchunks, cranges, cbcenter, cbradius, otype, opose, oparam, oaabb, pairs) = data
-    poses, wc, wb, wk, placed, gap2 = scratch
+    poses, wc, wb, wk, placed, gap2, joint = scratch
     gscale, pscale, bscale = scales
     best = cap
     g = 0
     for f in range(fparent.shape[0]):
-        value = 0.0
-        if fqidx[f] >= 0:
-            value = fmult[f] * q[fqidx[f]] + foffset[f]
-        _link_pose(poses, fparent[f] + 1, forigin, f, fjtype[f], faxis, value, f + 1)
+        joint[0, f] = fmult[f] * q[fqidx[f]] + foffset[f] if fqidx[f] >= 0 else 0.0
+    sincos_into(joint[0], joint[1], joint[2])  # all at once, in SIMD lanes
+    for f in range(fparent.shape[0]):
+        _link_pose(poses, fparent[f] + 1, forigin, f, fjtype[f], faxis, joint, f + 1)
         while g < gframe.shape[0] and gframe[g] == f:
             _place(poses, f + 1, gbcenter, g, wb, g)
             for k in range(gchunks[g, 0], gchunks[g, 1]):

@@ -44,14 +44,17 @@ def sincos(x):
     for a in _COS:
         c = (c + a) * r2
     s, c = r + r * s, 1.0 + c
-    quadrant = int(k) & 3
-    if quadrant == 0:
-        return s, c
-    if quadrant == 1:
-        return c, -s
-    if quadrant == 2:
-        return -s, -c
-    return -c, s
+    quadrant = int(k) & 3  # selects, no branches: a loop over angles runs in SIMD lanes
+    if quadrant & 1:
+        s, c = c, s
+    return (-s if quadrant & 2 else s), (-c if (quadrant + 1) & 2 else c)
+
+
+@njit(cache=True, inline="always")
+def sincos_into(x, sin_out, cos_out):
+    """sin_out[i], cos_out[i] = :func:`sincos` (x[i]) for x (n,) (rad), in SIMD lanes."""
+    for i in range(x.shape[0]):
+        sin_out[i], cos_out[i] = sincos(x[i])
 
 
 @njit(cache=True, inline="always")
@@ -64,14 +67,21 @@ def joint_transform(jtype, value, x, y, z, o00, o01, o02, o03, o10, o11, o12, o1
     REVOLUTE joint, a translation by ``value`` (m) along it for a PRISMATIC one, none for a
     FIXED one.
     """
+    s, c = sincos(value) if jtype == REVOLUTE else (0.0, 1.0)
+    return joint_transform_sincos(jtype, value, s, c, x, y, z, o00, o01, o02, o03, o10, o11, o12, o13, o20, o21,
+                                  o22, o23)
+
+
+@njit(cache=True, inline="always")
+def joint_transform_sincos(jtype, value, s, c, x, y, z, o00, o01, o02, o03, o10, o11, o12, o13, o20, o21, o22, o23):
+    """:func:`joint_transform` given s, c = :func:`sincos` (value) of a REVOLUTE joint (callers
+    computing many angles at once, :func:`sincos_into`)."""
     if jtype == REVOLUTE and x == 0.0 and y == 0.0:  # (0, 0, +-1), most URDF joints
-        s, c = sincos(value)
         s *= z
         o00, o01 = o00 * c + o01 * s, o01 * c - o00 * s
         o10, o11 = o10 * c + o11 * s, o11 * c - o10 * s
         o20, o21 = o20 * c + o21 * s, o21 * c - o20 * s
     elif jtype == REVOLUTE:
-        s, c = sincos(value)
         t = 1.0 - c
         m00, m01, m02 = t * x * x + c, t * x * y - s * z, t * x * z + s * y
         m10, m11, m12 = t * x * y + s * z, t * y * y + c, t * y * z - s * x
