@@ -133,25 +133,31 @@ def ball_joint_weights(model: RobotModel, links: np.ndarray, centers: np.ndarray
         qi = model.joint_q_index[i]
         travel[i] = abs(model.joint_multiplier[i]) * max(abs(model.lower[qi]), abs(model.upper[qi])) \
             + abs(model.joint_offset[i])
+    links, centers, radii = np.asarray(links, dtype=np.int64), np.asarray(centers, float), np.asarray(radii, float)
     W = np.zeros((len(links), model.n_links))
-    for ball, (link, center, radius) in enumerate(zip(links, np.asarray(centers, float), radii)):
-        # reach: bound on |p - origin of link k|; point: ball centre in link k's frame while the
-        # path down to it is rigid; else anchor: the nearest moving joint's origin, below: reach from it
-        reach, point, anchor, below, k = float(np.linalg.norm(center) + radius), center, None, 0.0, int(link)
+    for link in np.unique(links):  # the balls of one link share the walk to the root
+        balls = np.flatnonzero(links == link)
+        point, radius = centers[balls], radii[balls]
+        # reach: bound on |p - origin of link k|; point: ball centres in link k's frame while the
+        # path down to them is rigid; else anchor: the nearest moving joint's origin, below: reach from it
+        reach, anchor, below, k = np.linalg.norm(point, axis=1) + radius, None, None, int(link)
         while k >= 0:
             kind, T = model.joint_type[k], model.joint_origin[k]
             if kind == REVOLUTE:
                 axis = model.joint_axis[k] / np.linalg.norm(model.joint_axis[k])
-                x, extra = (point, radius) if anchor is None else (anchor, below)
-                W[ball, k] = abs(model.joint_multiplier[k]) * (np.linalg.norm(x - (x @ axis) * axis) + extra)
+                x, extra = (point, radius) if anchor is None else (anchor[None], below)
+                W[balls, k] = abs(model.joint_multiplier[k]) * (np.linalg.norm(x - np.outer(x @ axis, axis), axis=1)
+                                                                + extra)
             elif kind == PRISMATIC:
-                W[ball, k] = abs(model.joint_multiplier[k])
+                W[balls, k] = abs(model.joint_multiplier[k])
             if kind == FIXED:
-                point, anchor = (T[:3, :3] @ point + T[:3, 3], None) if anchor is None else \
-                    (point, T[:3, :3] @ anchor + T[:3, 3])
+                if anchor is None:
+                    point = point @ T[:3, :3].T + T[:3, 3]
+                else:
+                    anchor = T[:3, :3] @ anchor + T[:3, 3]
             else:
                 anchor, below = T[:3, 3], reach + travel[k]
-            reach += float(np.linalg.norm(T[:3, 3]) + travel[k])
+            reach = reach + float(np.linalg.norm(T[:3, 3]) + travel[k])
             k = int(model.link_parent[k])
     return W
 
