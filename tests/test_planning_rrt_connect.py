@@ -18,7 +18,7 @@ from prehensile.planning import (
 )
 from prehensile.collision import sphere_kernels as SK
 from prehensile.planning.context import ball_joint_weights
-from prehensile.planning.kernels import _scales
+from prehensile.planning.kernels import BLOCKED, FREE, NO_LIMIT, _scales, motion_free
 from prehensile.planning.shortcut import prune, waypoint_marks
 from prehensile.spatial import make_pose
 
@@ -355,10 +355,27 @@ def test_bubbles_never_pass_a_segment_that_dense_sampling_finds_colliding(axes):
     for a, b in zip(valid[:-1], valid[1:]):
         b = a + rng.uniform(0.1, 1.0) * (b - a)
         verdicts.append(ctx.check_motion(a, b))
+        dense = a + np.linspace(0, 1, 500)[:, None] * (b - a)
         if verdicts[-1]:
-            dense = a + np.linspace(0, 1, 500)[:, None] * (b - a)
             assert np.all(ctx.spheres.is_free(dense))
+        if ctx.is_valid(b):  # ends known free: the check starts in the middle
+            known = motion_free(a, b, ctx.resolution, ctx.spheres.data, ctx.scratch,
+                                ctx.motion_arrays(ctx.resolution), ctx.counters, NO_LIMIT, False)
+            assert known != FREE or np.all(ctx.spheres.is_free(dense))
     assert 10 < sum(verdicts) < len(verdicts) - 10  # both outcomes are exercised
+
+
+def test_segment_with_free_ends_blocked_in_the_middle_takes_one_evaluation(arm):
+    model, spheres = arm
+    ctx = PlanningContext(model, [_box("wall", [0.55, 0.25, 0.1], [0.1, 0.3, 0.3])], spheres=spheres)
+    start, goal = np.array([0.0, 0.2, 0.0]), np.array([1.2, -0.3, 0.4])
+    assert ctx.is_valid(start) and ctx.is_valid(goal) and not ctx.is_valid(0.5 * (start + goal))
+    counters = np.zeros(1, dtype=np.int64)
+    for test_b, evaluations in ((False, 1), (True, 2)):  # a new end is tested first
+        counters[0] = 0
+        assert motion_free(start, goal, ctx.resolution, ctx.spheres.data, ctx.scratch,
+                           ctx.motion_arrays(ctx.resolution), counters, NO_LIMIT, test_b) == BLOCKED
+        assert counters[0] == evaluations
 
 
 @pytest.mark.parametrize("slack", [0.0, 0.01])

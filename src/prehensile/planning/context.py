@@ -340,11 +340,12 @@ class PlanningContext:
         qb = self.model.check_configuration(qb, "qb")
         if qa.shape != (self.model.dof,) or qb.shape != (self.model.dof,):
             raise PrehensileError(f"check_motion: expected two configurations ({self.model.dof},)")
-        if self.spheres.static_hit or not (self.model.within_limits(qa) and self.model.within_limits(qb)):
+        if not self.is_valid(qa):  # motion_free takes qa as known free
             return False
         res = self.resolution if resolution is None else float(resolution)
-        return kernels.motion_free(qa, qb, res, self.spheres.data, self.scratch, self.motion_arrays(res),
-                                   self.counters, kernels.NO_LIMIT) == kernels.FREE
+        return self.model.within_limits(qb) and kernels.motion_free(
+            qa, qb, res, self.spheres.data, self.scratch, self.motion_arrays(res), self.counters, kernels.NO_LIMIT,
+            True) == kernels.FREE
 
     @property
     def certifier(self):
