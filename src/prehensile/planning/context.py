@@ -240,14 +240,15 @@ class PlanningContext:
         self.spheres = SphereChecker(self.collision_model, self.obstacles, self.T_world_base, self.sphere_model,
                                      self.acm)
         self.motion = self._motion_tables()
-        """(Wball (dof, S), Wgroup (G, D), qgroup (G, D), pcut (P,), scales, queue (Q, 2),
-        q (dof,), dq (dof + 1,), below (G, D + 1), last column 0) for
+        """(Wball (dof, S), Wgroup (G, D), qgroup (G, D), pcut (P, 2), scales, queue (Q, 2),
+        q (dof,), dq (dof + 1,), below (G, D + 1), first column 0) for
         :func:`prehensile.planning.kernels.motion_free`: per variable the weight of each ball
         of the sphere checker (all joints on its path); per group (link with balls) the moving
-        joints on its path, root first, with their largest weight over the group's balls and
-        their variables (padded with weight 0 and variable ``dof``); per self pair the number
-        of moving joints the two paths share (the joints below move one side only); the scale
-        arrays of :func:`~prehensile.collision.sphere_kernels.clearance`; work arrays (see
+        joints on its path, leaf first, with their largest weight over the group's balls and
+        their variables (padded with weight 0 and variable ``dof``); per self pair and side the
+        number of those joints that move that side only (the ones below the deepest joint the
+        two paths share); the scale arrays of
+        :func:`~prehensile.collision.sphere_kernels.clearance`; work arrays (see
         :meth:`motion_arrays`)."""
         self.scratch = SK.make_scratch(self.spheres.data)
         self.counters = np.zeros(1, dtype=np.int64)
@@ -271,7 +272,7 @@ class PlanningContext:
         to_variables = np.zeros((model.n_links, model.dof))  # joint weights -> variable weights
         to_variables[moving, model.joint_q_index[moving]] = 1.0
         Wball = (W @ to_variables).T
-        paths = [[k for k in reversed(model.path_to_root(link)) if is_moving[k]] for link in range(model.n_links)]
+        paths = [[k for k in model.path_to_root(link) if is_moving[k]] for link in range(model.n_links)]  # leaf first
         group_link = checker.group_links
         depth = max((len(paths[link]) for link in group_link), default=0)
         Wgroup, qgroup = np.zeros((len(granges), depth)), np.full((len(granges), depth), model.dof, dtype=np.int64)
@@ -279,7 +280,8 @@ class PlanningContext:
             path = paths[link]
             Wgroup[g, :len(path)] = np.max(W[start:stop][:, path], axis=0, initial=0.0)
             qgroup[g, :len(path)] = model.joint_q_index[path]
-        pcut = np.array([len(set(paths[group_link[i]]) & set(paths[group_link[j]])) for i, j in pairs], dtype=np.int64)
+        pcut = np.array([[len(paths[group_link[g]]) - len(set(paths[group_link[i]]) & set(paths[group_link[j]]))
+                          for g in (i, j)] for i, j in pairs], dtype=np.int64).reshape(-1, 2)
         scales = (np.empty(len(granges)), np.empty((len(pairs), 2)), np.empty(len(links)))
         span = np.where(np.isfinite(model.upper - model.lower), model.upper - model.lower, 2 * np.pi)
         self._longest = float(np.max(span @ Wball, initial=0.0))  # farthest a ball can move on any segment

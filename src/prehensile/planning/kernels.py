@@ -108,15 +108,14 @@ def _scales(qa, qb, granges, pairs, motion):
         if dq[k] != 0.0:  # skips the joints not planned
             for s in range(bscale.shape[0]):
                 bscale[s] += Wball[k, s] * dq[k]
-    depth = Wgroup.shape[1]
-    for g in range(Wgroup.shape[0]):  # below[g, c]: bound from the joints below the c-th on g's path
+    for g in range(Wgroup.shape[0]):  # below[g, c]: bound from the c joints nearest to g's link
         acc = 0.0
-        for i in range(depth - 1, -1, -1):
+        for i in range(Wgroup.shape[1]):
             acc += Wgroup[g, i] * dq[qgroup[g, i]]
-            below[g, i] = acc
+            below[g, i + 1] = acc
     for p in range(pscale.shape[0]):
-        pscale[p, 0] = max(below[pairs[p, 0], pcut[p]], _TINY)
-        pscale[p, 1] = max(below[pairs[p, 1], pcut[p]], _TINY)
+        pscale[p, 0] = max(below[pairs[p, 0], pcut[p, 0]], _TINY)
+        pscale[p, 1] = max(below[pairs[p, 1], pcut[p, 1]], _TINY)
     longest = 0.0
     for g in range(granges.shape[0]):
         m = _TINY
