@@ -10,8 +10,8 @@ configuration at s with scaled clearance c proves the whole stretch [s - c, s + 
 ball can travel farther than its distance to anything it may hit ("free bubbles", Quinlan
 1995; Vahrenkamp 2011 C.2). The check tests a new qb first (a planner's new node), then the
 midpoints of the stretches not yet covered, breadth first (a bisection order, so a collision
-in the middle shows early); qa is known free (a tree node or a path waypoint) and only its
-neighbourhood is covered, like any other stretch.
+in the middle shows early). Ends known free (tree nodes, path waypoints) are not evaluated:
+their neighbourhoods are covered like any other stretch.
 
 Resolution (Vahrenkamp 2011 B.2). Sampling so that no ball moves more than ``resolution``
 between checks lets a ball overlap what it passes by up to half a resolution step between
