@@ -360,7 +360,7 @@ def test_bubbles_never_pass_a_segment_that_dense_sampling_finds_colliding(axes):
             assert np.all(ctx.spheres.is_free(dense))
         if ctx.is_valid(b):  # ends known free: the check starts in the middle
             known = motion_free(a, b, ctx.resolution, ctx.spheres.data, ctx.scratch,
-                                ctx.motion_arrays(ctx.resolution), ctx.counters, NO_LIMIT, False)
+                                ctx.motion_arrays(ctx.resolution), ctx.counters, NO_LIMIT, 0)
             assert known != FREE or np.all(ctx.spheres.is_free(dense))
     assert 10 < sum(verdicts) < len(verdicts) - 10  # both outcomes are exercised
 
@@ -371,11 +371,11 @@ def test_segment_with_free_ends_blocked_in_the_middle_takes_one_evaluation(arm):
     start, goal = np.array([0.0, 0.2, 0.0]), np.array([1.2, -0.3, 0.4])
     assert ctx.is_valid(start) and ctx.is_valid(goal) and not ctx.is_valid(0.5 * (start + goal))
     counters = np.zeros(1, dtype=np.int64)
-    for test_b, evaluations in ((False, 1), (True, 2)):  # a new end is tested first
+    for new_ends in (0, 1, 2):  # new ends are tested first
         counters[0] = 0
         assert motion_free(start, goal, ctx.resolution, ctx.spheres.data, ctx.scratch,
-                           ctx.motion_arrays(ctx.resolution), counters, NO_LIMIT, test_b) == BLOCKED
-        assert counters[0] == evaluations
+                           ctx.motion_arrays(ctx.resolution), counters, NO_LIMIT, new_ends) == BLOCKED
+        assert counters[0] == new_ends + 1
 
 
 @pytest.mark.parametrize("slack", [0.0, 0.01])

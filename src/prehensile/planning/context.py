@@ -342,12 +342,11 @@ class PlanningContext:
         qb = self.model.check_configuration(qb, "qb")
         if qa.shape != (self.model.dof,) or qb.shape != (self.model.dof,):
             raise PrehensileError(f"check_motion: expected two configurations ({self.model.dof},)")
-        if not self.is_valid(qa):  # motion_free takes qa as known free
+        if self.spheres.static_hit or not (self.model.within_limits(qa) and self.model.within_limits(qb)):
             return False
         res = self.resolution if resolution is None else float(resolution)
-        return self.model.within_limits(qb) and kernels.motion_free(
-            qa, qb, res, self.spheres.data, self.scratch, self.motion_arrays(res), self.counters, kernels.NO_LIMIT,
-            True) == kernels.FREE
+        return kernels.motion_free(qa, qb, res, self.spheres.data, self.scratch, self.motion_arrays(res),
+                                   self.counters, kernels.NO_LIMIT, 2) == kernels.FREE
 
     @property
     def certifier(self):

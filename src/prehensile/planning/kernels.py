@@ -8,10 +8,10 @@ and every link of a self pair against the other (only the joints below their com
 The sphere kernel divides each ball-pair clearance by the sum of those bounds, so a
 configuration at s with scaled clearance c proves the whole stretch [s - c, s + c] free: no
 ball can travel farther than its distance to anything it may hit ("free bubbles", Quinlan
-1995; Vahrenkamp 2011 C.2). The check tests a new qb first (a planner's new node), then the
-midpoints of the stretches not yet covered, breadth first (a bisection order, so a collision
-in the middle shows early). Ends known free (tree nodes, path waypoints) are not evaluated:
-their neighbourhoods are covered like any other stretch.
+1995; Vahrenkamp 2011 C.2). The check tests the ends not known free first (qb, a planner's new
+node, then qa), then the midpoints of the stretches not yet covered, breadth first (a
+bisection order, so a collision in the middle shows early). Ends known free (tree nodes, path
+waypoints) are not evaluated: their neighbourhoods are covered like any other stretch.
 
 Resolution (Vahrenkamp 2011 B.2). Sampling so that no ball moves more than ``resolution``
 between checks lets a ball overlap what it passes by up to half a resolution step between
@@ -132,19 +132,20 @@ NO_LIMIT = 1 << 62  # a budget that decides every segment
 
 
 @njit(cache=True, _nrt=False)
-def motion_free(qa, qb, res, checker, scratch, motion, counters, budget, test_b):
+def motion_free(qa, qb, res, checker, scratch, motion, counters, budget, new_ends):
     """Check the segment qa -> qb (dof,) for the sphere model (see the module doc).
 
     Args:
-        qa, qb: configurations (dof,); qa must be known free (a tree node, a path waypoint).
+        qa, qb: configurations (dof,).
         res: resolution (m) where the clearance does not cover the segment.
         checker, scratch: the sphere checker's ``data`` and work arrays.
         motion: ``PlanningContext.motion_arrays(res)``.
         counters: counters[0] is incremented per clearance evaluation.
         budget: most clearance evaluations to spend.
-        test_b: qb is new: test it first (most extensions toward a sample end in a collision);
-            otherwise it must be known free, and the first evaluation is the midpoint (where a
-            blocked shortcut or pruning is most often blocked).
+        new_ends: 0 if both ends are known free (the first evaluation is then the midpoint,
+            where a blocked shortcut or pruning is most often blocked); 1 if qb is new (tested
+            first: most extensions toward a sample end in a collision), qa known free; 2 if
+            both are new (qb, then qa).
 
     Returns:
         FREE, BLOCKED, or UNDECIDED when the budget ran out first.
@@ -153,19 +154,30 @@ def motion_free(qa, qb, res, checker, scratch, motion, counters, budget, test_b)
     longest = _scales(qa, qb, checker[9], checker[-1], motion)
     slack = 0.5 * res
     half = slack / max(longest, _TINY)  # the stretch over which no ball moves more than half a step
-    hi, spent = 1.0, 0  # the stretch (0, hi) is left to cover
-    if test_b:
+    lo, hi, spent = 0.0, 1.0, 0  # the stretch (lo, hi) is left to cover
+    if new_ends >= 1:
         counters[0] += 1
         spent = 1
         cover_b = SK.clearance(qb, checker, scratch, _CAP, scales, slack)
         if cover_b < 0.0:
             return BLOCKED
-        hi = 1.0 - max(cover_b, half)
-    if longest <= _TINY or hi <= 0.0:  # nothing moves, or qb's bubble holds the segment
+        if longest <= _TINY or cover_b >= 1.0:  # nothing moves, or qb's bubble holds the segment
+            return FREE
+        hi = 1.0 - max(cover_b, half)  # negative on a segment shorter than half a step
+    if new_ends == 2:
+        if spent >= budget:
+            return UNDECIDED
+        counters[0] += 1
+        spent += 1
+        cover_a = SK.clearance(qa, checker, scratch, min(max(hi, 0.0), _CAP), scales, slack)  # hi < 0: a plain test
+        if cover_a < 0.0:
+            return BLOCKED
+        lo = max(cover_a, half)
+    if longest <= _TINY or lo >= hi:
         return FREE
     size = queue.shape[0]
     head, tail = 0, 1
-    queue[0, 0], queue[0, 1] = 0.0, hi
+    queue[0, 0], queue[0, 1] = lo, hi
     while head < tail:
         if spent >= budget:
             return UNDECIDED

@@ -139,7 +139,7 @@ def _extend(nodes, parents, flags, points, counters, t, target, near, dist, step
         f = step / dist
         for k in idx:
             new[k] = base[k] + f * (target[k] - base[k])
-    verdict = motion_free(base, new, res, checker, scratch, motion, counters, budget, True)
+    verdict = motion_free(base, new, res, checker, scratch, motion, counters, budget, 1)
     if verdict == BLOCKED:
         return _TRAPPED, -1
     parents[t, size], flags[t, size] = near, _CHECKED if verdict == FREE else 0
@@ -211,7 +211,7 @@ def _confirm(nodes, parents, flags, points, counters, n, marks, owner, res, chec
             if owner[e] < 0 or flags[t, k] & _CHECKED:
                 continue
             if motion_free(nodes[t, parents[t, k]], nodes[t, k], res, checker, scratch, motion, counters,
-                           NO_LIMIT, False) != FREE:
+                           NO_LIMIT, 0) != FREE:
                 _cut(flags, points, t, k)
                 for j in range(k + 1, counters[SIZE + t]):  # children come after their parents
                     if flags[t, parents[t, j]] & _DEAD:
@@ -260,7 +260,7 @@ def search(nodes, parents, flags, points, work, counters, path, marks, owner, pr
     for a in range(counters[START_NODES]):
         for g in range(counters[DIRECT], counters[SIZE + 1]):
             if not (flags[0, a] | flags[1, g]) & _DEAD and motion_free(
-                    nodes[0, a], nodes[1, g], res, checker, scratch, motion, counters, NO_LIMIT, False) == FREE:
+                    nodes[0, a], nodes[1, g], res, checker, scratch, motion, counters, NO_LIMIT, 0) == FREE:
                 if _finish(nodes, parents, flags, points, counters, a, g, False, path, marks, owner, prune_path, idx,
                            w, res, checker, scratch, motion):
                     return FOUND

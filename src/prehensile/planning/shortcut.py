@@ -104,7 +104,7 @@ def prune(path, n, marks, idx, w, res, checker, scratch, motion, counters):
         b = min(n - 1, a + _WINDOW)
         while b > a + 1:
             if not _blocked(memo, ids[a], ids[b], False):
-                if motion_free(path[a], path[b], res, checker, scratch, motion, counters, NO_LIMIT, False) == FREE:
+                if motion_free(path[a], path[b], res, checker, scratch, motion, counters, NO_LIMIT, 0) == FREE:
                     checked[m - 1] = True
                     break
                 _blocked(memo, ids[a], ids[b], True)
@@ -146,7 +146,7 @@ def simplify(path, n, marks, iterations, first, last, rng, idx, w, res, checker,
             qb[k] = path[j, k] + tb * (path[j + 1, k] - path[j, k])
         if (e - s) - distance(qa, qb, idx, w) <= _MIN_GAIN * total:  # too little to gain
             continue
-        if motion_free(qa, qb, res, checker, scratch, motion, counters, NO_LIMIT, False) != FREE:
+        if motion_free(qa, qb, res, checker, scratch, motion, counters, NO_LIMIT, 0) != FREE:
             continue
         # path[:i+1], qa, qb, path[j+1:n]: j - i waypoints out, two in; qb -> path[j + 1] is part of edge j
         tail, old, rest_checked = i + 3, j + 1, checked[j]
