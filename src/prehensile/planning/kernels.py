@@ -11,7 +11,7 @@ ball can travel farther than its distance to anything it may hit ("free bubbles"
 1995; Vahrenkamp 2011 C.2). The check tests the ends not known free first (qb, a planner's new
 node, then qa), then the midpoints of the stretches not yet covered, breadth first (a
 bisection order, so a collision in the middle shows early). Ends known free (tree nodes, path
-waypoints) are not evaluated: their neighbourhoods are covered like any other stretch.
+points) are not evaluated: their neighbourhoods are covered like any other stretch.
 
 Resolution (Vahrenkamp 2011 B.2). Sampling so that no ball moves more than ``resolution``
 between checks lets a ball overlap what it passes by up to half a resolution step between

@@ -75,7 +75,8 @@ class RRTConnectSettings:
             show within a few checks, most free ones are never needed). A large value checks
             every edge at once. On the 400 MotionBenchMaker Panda problems 3 spends the fewest
             in the mean and close to the fewest in the median (search evaluations at 2, 3, 4, 5,
-            6: median 382, 404, 412, 434, 458; mean 1977, 1798, 1818, 1940, 1972).
+            6: median 382, 404, 412, 434, 458; mean 1977, 1798, 1818, 1940, 1972; one seed per
+            problem, other seeds move these by a few percent).
         max_nodes: nodes per tree.
         shortcut: simplify the path (:func:`~prehensile.planning.shortcut.shortcut`).
         shortcut_iterations: random shortcut attempts.
