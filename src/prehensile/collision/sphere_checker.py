@@ -248,6 +248,20 @@ class SphereChecker:
             K.clearance_batch(flat, data, self._scratch, float(cap), scales, out)
         return out.reshape(q.shape[:-1])
 
+    def screen(self, q: np.ndarray, margin: float) -> tuple[np.ndarray, np.ndarray]:
+        """(free, near), each (*batch,) bool, for q (*batch, dof): ``free`` as :meth:`is_free`,
+        ``near``: some ball is closer than ``margin`` (m) to an obstacle (as
+        ``clearance(q, self_pairs=False) < margin``); one compiled call for both."""
+        q = self.model.check_configuration(q)
+        flat = np.ascontiguousarray(q.reshape(-1, self.model.dof))
+        free, near = np.empty(len(flat), dtype=np.bool_), np.empty(len(flat), dtype=np.bool_)
+        if self.static_hit:
+            free[:], near[:] = False, True
+        else:
+            K.screen_batch(flat, self.data, self._world_only[0], self._scratch, self._scales, self._world_only[1],
+                           float(margin), free, near)
+        return free.reshape(q.shape[:-1]), near.reshape(q.shape[:-1])
+
     def first_collision(self, q_path: np.ndarray) -> int:
         """Index of the first colliding configuration of q_path (N, dof), or -1 if all are free.
 

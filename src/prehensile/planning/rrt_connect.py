@@ -51,7 +51,7 @@ from prehensile.planning.kernels import (
     BLOCKED, FREE, NO_LIMIT, assign, distance, motion_free, nearest, rng_state, uniform,
 )
 from prehensile.planning.result import PlanResult, PlanStats, PlanStatus
-from prehensile.planning.shortcut import prune, shortcut, waypoint_marks
+from prehensile.planning.shortcut import prune, shortcut_checked, waypoint_marks
 
 RUNNING, FOUND, FULL = 0, 1, 2  # kernel results
 _TRAPPED, _ADVANCED, _REACHED, _NO_ROOM = 0, 1, 2, 3  # extension results
@@ -311,13 +311,15 @@ class _Trees:
         first = int(self.counters[SIZE + t])
         while first + len(tree_nodes) > self.nodes.shape[1]:
             self.grow(2 * self.nodes.shape[1])
-        for i, (q, parent, flags) in enumerate(tree_nodes):
-            self.nodes[t, first + i], self.flags[t, first + i] = q, flags
-            self.parents[t, first + i] = first + parent if parent >= 0 else -1
-            _set_point(self.points, t, first + i, q, self.space.indices, self.space.weights)
+        end = first + len(tree_nodes)
+        for i, (q, parent, flags) in enumerate(tree_nodes, first):
+            self.nodes[t, i], self.flags[t, i] = q, flags
+            self.parents[t, i] = first + parent if parent >= 0 else -1
+        self.points[t, :, first:end] = (self.nodes[t, first:end][:, self.space.indices] * self.space.weights).T
+        for i, (_, _, flags) in enumerate(tree_nodes, first):
             if flags & _DEAD:
-                _cut(self.flags, self.points, t, first + i)
-        self.counters[SIZE + t] = first + len(tree_nodes)
+                _cut(self.flags, self.points, t, i)
+        self.counters[SIZE + t] = end
         return first
 
     def grow(self, limit: int) -> bool:
@@ -342,8 +344,8 @@ def _endpoints(ctx: PlanningContext, qs: np.ndarray, toward: np.ndarray, setting
     its certified escape node [(escape, 0, _CHECKED)] (moving toward ``toward`` (k, dof)); None
     if it is unusable (outside the limits, or colliding for the balls without an escape)."""
     inside = ctx.model.within_limits(qs)
-    valid = inside & ctx.spheres.is_free(qs)
-    tight = inside & (ctx.spheres.clearance(qs, ctx.resolution, self_pairs=False) < 0.5 * ctx.resolution)
+    free, near = ctx.spheres.screen(qs, 0.5 * ctx.resolution)
+    valid, tight = inside & free, inside & near
     out: list[list | None] = []
     for i, q in enumerate(qs):
         escape = None
@@ -403,7 +405,7 @@ class RRTConnectSearch:
             raise PrehensileError("rrt_connect: goal and start differ in joints that are not planned "
                                   f"({', '.join(model.joint_names[i] for i in fixed)})")
         first = len(self.goals)
-        self.goals = np.vstack([self.goals, goals])
+        self.goals = np.concatenate((self.goals, goals))
         if self.trees is not None:
             self._append_goals(first)
         self._setup_s += clock() - started
@@ -411,8 +413,9 @@ class RRTConnectSearch:
     def _append_goals(self, first: int) -> None:
         """Put goals[first:] (with their escape nodes) into the goal tree."""
         goals = self.goals[first:]
-        self._add_goal_nodes(first, _endpoints(self.context, goals, np.broadcast_to(self.start, goals.shape),
-                                               self.settings, self.rng))
+        toward = np.empty_like(goals)
+        toward[:] = self.start
+        self._add_goal_nodes(first, _endpoints(self.context, goals, toward, self.settings, self.rng))
 
     def _add_goal_nodes(self, first: int, goal_nodes: list) -> None:
         for row, nodes in enumerate(goal_nodes, first):
@@ -423,9 +426,9 @@ class RRTConnectSearch:
     def _build_trees(self) -> None:
         """New trees in the current context: the start (and its escape) and every goal."""
         self.goal_row, self.trees = {}, None
-        qs = np.vstack([self.start, self.goals])
-        toward = np.vstack([self.goals[:1] if len(self.goals) else self.start[None],
-                            np.broadcast_to(self.start, self.goals.shape)])
+        qs = np.concatenate((self.start[None], self.goals))
+        toward = np.empty_like(qs)  # the start escapes toward the first goal, goals toward the start
+        toward[0], toward[1:] = self.goals[0] if len(self.goals) else self.start, self.start
         start, *goal_nodes = _endpoints(self.context, qs, toward, self.settings, self.rng)
         self.start_status = PlanStatus.INVALID_START if start is None else None
         if start is not None:
@@ -502,10 +505,10 @@ class RRTConnectSearch:
             if path is None:
                 status = PlanStatus.TIMEOUT if report is None else PlanStatus.CERTIFICATION_FAILED
                 return PlanResult(status, empty, PlanStats(**totals), info={"attempts": attempt + 1, "certify": report})
-            if settings.shortcut:
+            if settings.shortcut and len(path) >= 3:
                 begun = clock()
-                path = shortcut(self.context, path, self.rng, settings.shortcut_iterations, settings.shortcut_time_s,
-                                self.res, checks, pruned=self.trees.marks)
+                path = shortcut_checked(self.context, path, self.rng, settings.shortcut_iterations,
+                                        settings.shortcut_time_s, self.res, checks, pruned=self.trees.marks)
                 totals["simplify_time_s"] += clock() - begun
             space = self.context.space
             info = {"attempts": attempt + 1, "length": space.path_length(path[:, space.indices]),

@@ -195,7 +195,13 @@ def shortcut(ctx: PlanningContext, path: np.ndarray, rng: np.random.Generator, i
     if len(path) < 3:
         return path.copy()
     res = ctx.resolution if resolution is None else float(resolution)
-    iterations = int(iterations)
+    return shortcut_checked(ctx, path, rng, int(iterations), time_budget_s, res, stats, pruned)
+
+
+def shortcut_checked(ctx: PlanningContext, path: np.ndarray, rng: np.random.Generator, iterations: int,
+                     time_budget_s: float, res: float, stats: np.ndarray | None = None,
+                     pruned: tuple | None = None) -> np.ndarray:
+    """:func:`shortcut` of a path known valid: (N >= 3, dof) float64, within the planned joints."""
     buffer = np.empty((len(path) + iterations, ctx.model.dof))
     buffer[:len(path)] = path
     ids, checked, memo = waypoint_marks(len(buffer))
