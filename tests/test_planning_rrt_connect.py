@@ -252,6 +252,23 @@ def test_path_failing_certification_is_planned_again_on_the_cover(arm):
         PlanningContext(model, slot, spheres=thin, cover=thin)
 
 
+def test_refined_contexts_of_two_scenes_share_the_robot_tables_not_the_world(arm):
+    """The tables that depend only on the robot and its balls (ball groups, motion weights) are
+    built once and shared by the refined contexts of every scene; each still checks its own
+    obstacles."""
+    model, spheres = arm
+    thin = SphereModel(spheres.link_names, spheres.sphere_link, spheres.centers, 0.25 * spheres.radii)
+    left, right = _box("left", [0.0, 0.8, 0.1], [0.1, 0.1, 0.1]), _box("right", [0.0, -0.8, 0.1], [0.1, 0.1, 0.1])
+    a = PlanningContext(model, [left], spheres=thin, cover=spheres).refined({"l3"})
+    b = PlanningContext(model, [right], spheres=thin, cover=spheres).refined({"l3"})
+    assert a.sphere_model is b.sphere_model
+    assert a.spheres.data[10] is b.spheres.data[10] and a.motion[0] is not b.motion[0]
+    np.testing.assert_array_equal(a.motion[0], b.motion[0])
+    toward_left, toward_right = np.array([np.pi / 2, 0.0, 0.0]), np.array([-np.pi / 2, 0.0, 0.0])
+    np.testing.assert_array_equal(a.is_valid(np.stack([toward_left, toward_right])), [False, True])
+    np.testing.assert_array_equal(b.is_valid(np.stack([toward_left, toward_right])), [True, False])
+
+
 def test_context_checks_shapes_and_limits(arm):
     model, spheres = arm
     block = _box("block", [0.6, 0.0, 0.1], [0.1, 0.1, 0.3])

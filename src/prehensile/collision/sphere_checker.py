@@ -13,6 +13,8 @@ obstacle mesh is not detected by either checker.
 
 from __future__ import annotations
 
+import functools
+
 from typing import Sequence
 
 import numpy as np
@@ -88,7 +90,8 @@ def _tree_distance(model: RobotModel, a: int, b: int) -> int:
 CHUNK = 8  # balls per chunk: the middle level of the bounding-ball hierarchy
 
 
-def _frames_and_groups(model: RobotModel, spheres: SphereModel) -> tuple[dict, dict]:
+@functools.lru_cache(maxsize=32)
+def frames_and_groups(model: RobotModel, spheres: SphereModel) -> tuple[dict, dict]:
     """Kinematic frames (moving rigid bodies) and ball groups (links with balls) for the kernels.
 
     Links joined by fixed joints form one rigid body; its top link is the frame. Balls are
@@ -96,6 +99,9 @@ def _frames_and_groups(model: RobotModel, spheres: SphereModel) -> tuple[dict, d
     the root body (its pose never changes). Each group's balls are sorted along its main axis
     and cut into chunks of ``CHUNK`` with a bounding ball each; ``order`` maps the kernels'
     balls to the sphere model's.
+
+    Cached per (model, sphere model) object: they do not depend on the scene, so every
+    checker of that robot with those balls shares the arrays (nothing writes them).
     """
     body = rigid_bodies(model)
     roots = [i for i in range(model.n_links) if body[i] == i]
@@ -182,7 +188,7 @@ class SphereChecker:
             raise PrehensileError("SphereChecker: the sphere model belongs to a different robot (link lists differ)")
         self.acm = allowed_collision_matrix(model) if acm is None else np.asarray(acm, dtype=bool)
         self.T_world_base = np.eye(4) if T_world_base is None else np.ascontiguousarray(T_world_base, dtype=float)
-        frames, groups = _frames_and_groups(model, self.spheres)
+        frames, groups = frames_and_groups(model, self.spheres)
         g_link = groups["link"]
         pairs = [(a, b) for a in range(len(g_link)) for b in range(a + 1, len(g_link))
                  if not self.acm[g_link[a], g_link[b]]]

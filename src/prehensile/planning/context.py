@@ -19,6 +19,7 @@ workspace-weighted metric for links close in the chain.
 from __future__ import annotations
 
 import dataclasses
+import functools
 from dataclasses import dataclass, field
 from typing import Sequence
 
@@ -26,7 +27,7 @@ import numpy as np
 
 from prehensile.collision import sphere_kernels as SK
 from prehensile.collision.acm import allowed_collision_matrix, rigid_bodies
-from prehensile.collision.sphere_checker import SphereChecker
+from prehensile.collision.sphere_checker import SphereChecker, frames_and_groups
 from prehensile.collision.sphere_fit import cover_geometries
 from prehensile.collision.spheres import SphereModel, generate_sphere_model, replace_link_balls
 from prehensile.collision.world import Obstacle
@@ -162,6 +163,22 @@ def ball_joint_weights(model: RobotModel, links: np.ndarray, centers: np.ndarray
     return W
 
 
+@functools.lru_cache(maxsize=32)
+def _kernel_ball_weights(model: RobotModel, spheres: SphereModel) -> np.ndarray:
+    """:func:`ball_joint_weights` of the sphere kernels' balls (their order), with radius 0: a
+    ball's distance to anything changes only as fast as its centre moves. Cached per (model,
+    sphere model) object, like the kernels' ball groups: they do not depend on the scene."""
+    order = frames_and_groups(model, spheres)[1]["order"]
+    return ball_joint_weights(model, spheres.sphere_link[order], spheres.centers[order], np.zeros(len(order)))
+
+
+@functools.lru_cache(maxsize=64)
+def _refined_balls(balls: SphereModel, cover: SphereModel, links: frozenset) -> SphereModel:
+    """:func:`replace_link_balls`, one object per (balls, cover, links), so that the refined
+    contexts of every scene share its cached tables."""
+    return replace_link_balls(balls, cover, set(links))
+
+
 def motion_weights(model: RobotModel, centers: np.ndarray, radii: np.ndarray, pairs: np.ndarray) -> np.ndarray:
     """(P, dof) rows W with ``W[p] @ |dq|`` bounding the relative motion of pair p (m).
 
@@ -263,10 +280,7 @@ class PlanningContext:
     def _motion_tables(self) -> tuple:
         model, checker = self.collision_model, self.spheres
         granges, pairs = checker.data[9], checker.data[-1]
-        order = checker.ball_order
-        links = self.sphere_model.sphere_link[order]
-        # a ball's distance to anything changes only as fast as its centre moves: radius 0
-        W = ball_joint_weights(model, links, self.sphere_model.centers[order], np.zeros(len(links)))
+        W = _kernel_ball_weights(model, self.sphere_model)
         is_moving = np.isin(model.joint_type, (REVOLUTE, PRISMATIC))
         moving = np.flatnonzero(is_moving)
         to_variables = np.zeros((model.n_links, model.dof))  # joint weights -> variable weights
@@ -282,7 +296,7 @@ class PlanningContext:
             qgroup[g, :len(path)] = model.joint_q_index[path]
         pcut = np.array([[len(paths[group_link[g]]) - len(set(paths[group_link[i]]) & set(paths[group_link[j]]))
                           for g in (i, j)] for i, j in pairs], dtype=np.int64).reshape(-1, 2)
-        scales = (np.empty(len(granges)), np.empty((len(pairs), 2)), np.empty(len(links)))
+        scales = (np.empty(len(granges)), np.empty((len(pairs), 2)), np.empty(len(W)))
         span = np.where(np.isfinite(model.upper - model.lower), model.upper - model.lower, 2 * np.pi)
         self._longest = float(np.max(span @ Wball, initial=0.0))  # farthest a ball can move on any segment
         return (np.ascontiguousarray(Wball), Wgroup, qgroup, pcut, scales, np.empty((0, 2)), np.empty(model.dof),
@@ -310,7 +324,7 @@ class PlanningContext:
         key = frozenset(links) & frozenset(self.model.link_names)  # attached objects are covered already
         if key not in self._refined:
             joints, q_ref, acm = self._refine_args
-            spheres = replace_link_balls(self._balls, self._cover, set(key))
+            spheres = _refined_balls(self._balls, self._cover, key)
             context = PlanningContext(self.model, self.obstacles, joints, q_ref, self.T_world_base, spheres, acm,
                                       self.attached, self.resolution, self.certify_resolution, self._cover)
             context._exact_checkers = self._exact_checkers
