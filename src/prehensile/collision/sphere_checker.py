@@ -14,7 +14,6 @@ obstacle mesh is not detected by either checker.
 from __future__ import annotations
 
 import functools
-
 from typing import Sequence
 
 import numpy as np
