@@ -57,6 +57,7 @@ def _check_summary(summary: dict, total: int) -> None:
         assert 0 < summary["median_ms"] <= summary["p95_ms"]
         assert summary["path_length"] > 0
         assert 0 <= summary["colliding_paths"] <= summary["solved"]
+        assert 0 <= summary["planned_again"] <= summary["solved"]
 
 
 def test_bench_mbm_ours(problem_dir, tmp_path):
@@ -118,11 +119,14 @@ def test_summaries():
     assert ratio(4.0, 2.0) == 2.0 and ratio(None, 1.0) is None and ratio(1.0, 0.0) is None
     records = [
         {"status": "success", "solved": True, "time_s": 0.001, "search_s": 0.0008, "simplify_s": 0.0002,
-         "certify_s": 0.01, "collision_checks": 100, "waypoints": 3, "path_length": 1.0, "exact_colliding": False},
+         "certify_s": 0.01, "collision_checks": 100, "waypoints": 3, "path_length": 1.0, "exact_colliding": False,
+         "attempts": 2},
         {"status": "invalid_goal", "solved": False, "time_s": 0.0, "search_s": 0.0, "simplify_s": 0.0,
-         "certify_s": 0.0, "collision_checks": 2, "waypoints": 0, "path_length": None, "exact_colliding": None},
+         "certify_s": 0.0, "collision_checks": 2, "waypoints": 0, "path_length": None, "exact_colliding": None,
+         "attempts": 1},
     ]
     summary = summarize(records)
     assert (summary["solved"], summary["total"], summary["colliding_paths"]) == (1, 2, 0)
     assert summary["median_ms"] == pytest.approx(1.0) and summary["path_length"] == 1.0
     assert summary["statuses"] == {"success": 1, "invalid_goal": 1}
+    assert summary["planned_again"] == 1

@@ -192,6 +192,7 @@ def _record(prepared: PreparedProblem, result, time_s: float, settings: MBMSetti
         "search_s": result.stats.plan_time_s, "simplify_s": result.stats.simplify_time_s,
         "certify_s": result.stats.certify_time_s, "collision_checks": result.stats.collision_checks,
         "waypoints": len(result.path), "path_length": None, "exact_colliding": None,
+        "attempts": result.info.get("attempts", 1),  # > 1: planned again after a failed certification
     }
     if result.success:
         record["path_length"] = space.path_length(space.active(result.path))
@@ -219,6 +220,7 @@ def summarize(records: Sequence[dict]) -> dict:
         "path_length": mean_or_none(r["path_length"] for r in solved),
         "colliding_paths": sum(bool(r["exact_colliding"]) for r in solved),
         "collision_checks_median": float(np.median([r["collision_checks"] for r in solved])) if solved else None,
+        "planned_again": sum(r["attempts"] > 1 for r in solved),
         "statuses": statuses,
     }
 
