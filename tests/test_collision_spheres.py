@@ -198,6 +198,9 @@ def test_world_clearance_is_the_exact_ball_distance():
     assert 20 < free.sum() < len(q) - 20  # free and colliding configurations
     assert set(np.argmin(each[free], axis=1)) == set(range(len(obstacles)))  # every shape is nearest somewhere
     assert np.allclose(clearance[free], truth[free], atol=1e-9)
+    assert np.all(clearance[~free] < 0.0)
+    capped = checker.clearance(q[free], cap=0.05, self_pairs=False)
+    assert np.allclose(capped, np.minimum(truth[free], 0.05), atol=1e-9)
 
     # screen: both verdicts of one call agree with is_free and the world clearance
     margin = 0.05
@@ -206,6 +209,3 @@ def test_world_clearance_is_the_exact_ball_distance():
     assert np.array_equal(screened_free.ravel(), checker.is_free(q))
     assert np.array_equal(near.ravel(), clearance < margin)
     assert 20 < (near.ravel() & free).sum() < free.sum() - 20  # near and far free configurations
-    assert np.all(clearance[~free] < 0.0)
-    capped = checker.clearance(q[free], cap=0.05, self_pairs=False)
-    assert np.allclose(capped, np.minimum(truth[free], 0.05), atol=1e-9)
