@@ -88,8 +88,9 @@ def test_bench_mbm_with_ompl(problem_dir, tmp_path):
     assert ratios["paired_problems"] <= min(report["overall"]["solved"], ompl["overall"]["solved"])
     if ratios["paired_problems"]:
         assert ratios["median_speedup"] > 0 and ratios["paired_median_speedup"] > 0
+    assert ompl["overall"]["certify_median_ms"] is None  # OMPL does not certify
     for run in report["runs"]:
-        assert run["ompl"]["solved"] == (run["ompl"]["status"] == "success")
+        assert run["ompl"]["solved"] == (run["ompl"]["status"] == "success") and run["ompl"]["certify_s"] is None
 
 
 def test_bad_problems_path_exits_2(tmp_path):

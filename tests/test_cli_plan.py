@@ -10,10 +10,13 @@ from typer.testing import CliRunner
 
 from prehensile.cli.main import app
 from prehensile.errors import SceneError
+from prehensile.kinematics import link_pose
 from prehensile.scene.files import bundled_scene_path, load_scene, robot_goals
+from prehensile.spatial import rpy_to_matrix
 
 ARM = [f"panda_joint{i}" for i in range(1, 8)]
 IN_THE_WALL = ["0.0", "0.2", "0.0", "-2.0", "0.0", "2.2", "0.785"]  # hand straight into the wall
+BEHIND_THE_WALL = ["0.3672", "0.4627", "0.2566", "3.1416", "0", "0.9004"]  # the scene goal's TCP pose (m, rad)
 runner = CliRunner()
 
 
@@ -56,7 +59,32 @@ def test_plan_bundled_scene(demo, tmp_path):
     assert (tmp_path / "plan.png").stat().st_size > 10_000
 
 
+@pytest.mark.parametrize("planner", ["ik_rrt", "jplus_rrt"])
+def test_plan_to_a_target_pose(demo, planner, tmp_path):
+    _, scene, _ = demo
+    result = _plan("plan_demo", "--chain", "arm", "--target", *BEHIND_THE_WALL, "--planner", planner, "--out", tmp_path)
+    assert result.exit_code == 0, result.output
+    path = json.loads((tmp_path / "path.json").read_text())
+    robot = scene.robots[0]
+    values, target = np.array(BEHIND_THE_WALL, float), np.eye(4)
+    target[:3, :3], target[:3, 3] = rpy_to_matrix(values[3:]), values[:3]
+    assert path["status"] == "success" and path["planner"] == planner
+    np.testing.assert_allclose(path["target"], target, atol=1e-12)
+    waypoints = np.array(path["waypoints"])
+    assert path["goal"] == pytest.approx(waypoints[-1].tolist())
+    np.testing.assert_allclose(waypoints[0], robot.configuration[robot.model.chain_q_indices("arm")], atol=1e-9)
+    reached = robot.configuration.copy()
+    reached[robot.model.chain_q_indices("arm")] = waypoints[-1]
+    tcp = link_pose(robot.model, reached, "panda_hand_tcp", T_world_base=robot.T_world_base)
+    np.testing.assert_allclose(tcp[:3, 3], target[:3, 3], atol=1.5e-3)
+    assert np.arccos(np.clip(0.5 * (np.trace(tcp[:3, :3].T @ target[:3, :3]) - 1.0), -1.0, 1.0)) < 1.5e-2
+    trajectory = json.loads((tmp_path / "trajectory.json").read_text())
+    assert len(trajectory["velocity_limits"]) == len(trajectory["acceleration_limits"]) == 7
+    np.testing.assert_allclose(trajectory["q"][-1], waypoints[-1], atol=1e-6)
+
+
 def test_goal_in_collision_exits_1(tmp_path):
+    (tmp_path / "trajectory.json").write_text("{}")  # an earlier plan's
     result = _plan("plan_demo", "--goal", *IN_THE_WALL, "--out", tmp_path)
     assert result.exit_code == 1, result.output
     assert "invalid_goal" in result.output
@@ -72,7 +100,14 @@ def test_goal_in_collision_exits_1(tmp_path):
     (["plan_demo", "--goal", "9", "0", "0", "-2", "0", "2", "0.7"], "outside its limits"),
     (["plan_demo", "--robot", "nao"], "no robot 'nao'; robots: panda"),
     (["plan_demo", "--chain", "leg"], "chain"),
-    (["plan_demo", "--planner", "prm"], "valid: rrt_connect"),
+    (["plan_demo", "--planner", "prm"], "valid: rrt_connect, ik_rrt, jplus_rrt"),
+    (["plan_demo", "--target", *BEHIND_THE_WALL], "give --chain"),
+    (["plan_demo", "--chain", "arm", "--target", "0.3", "0.4", "0.2"], "expected 6 values"),
+    (["plan_demo", "--chain", "arm", "--target", *BEHIND_THE_WALL, "--planner", "rrt_connect"],
+     "use ik_rrt or jplus_rrt"),
+    (["plan_demo", "--chain", "arm", "--planner", "jplus_rrt"], "give --target"),
+    (["plan_demo", "--goal", *IN_THE_WALL, "--target", *BEHIND_THE_WALL], "not both"),
+    (["plan_demo", "--seed", "-1"], "--seed"),
     (["no_such_scene"], "bundled scenes:"),
 ])
 def test_bad_input_exits_2(args, message, tmp_path):

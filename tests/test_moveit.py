@@ -52,6 +52,8 @@ def test_all_400_problems_parse(problems):
     for scenario, index, scene, request in problems:
         assert scene.obstacles and request.group == "panda_arm"
         assert len(request.goal) == 7 and "panda_finger_joint1" in request.start
+    first = list(iter_mbm_problems(TARBALL, per_scenario=2))
+    assert [(p.scenario, p.index) for p in first] == [(p.scenario, p.index) for p in problems if p.index <= 2]
 
 
 @needs_mbm

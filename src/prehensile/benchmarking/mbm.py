@@ -122,11 +122,7 @@ def load_problems(path: str | Path, model: RobotModel, limit: int = 0) -> list[M
         SceneError: the path is neither a folder nor an archive, or a pair is incomplete.
         PrehensileError: no problem found.
     """
-    problems, counts = [], {}
-    for problem in iter_mbm_problems(path, robot=model):
-        counts[problem.scenario] = counts.get(problem.scenario, 0) + 1
-        if not limit or counts[problem.scenario] <= limit:
-            problems.append(problem)
+    problems = list(iter_mbm_problems(path, robot=model, per_scenario=limit))
     if not problems:
         raise PrehensileError(f"{path}: no MoveIt problems found (expected sceneNNNN.yaml / requestNNNN.yaml pairs)")
     return problems
@@ -190,7 +186,8 @@ def _record(prepared: PreparedProblem, result, time_s: float, settings: MBMSetti
     record = {
         "status": result.status.value, "solved": result.success, "time_s": time_s,
         "search_s": result.stats.plan_time_s, "simplify_s": result.stats.simplify_time_s,
-        "certify_s": result.stats.certify_time_s, "collision_checks": result.stats.collision_checks,
+        "certify_s": result.stats.certify_time_s if "certify" in result.info else None,  # None: not certified
+        "collision_checks": result.stats.collision_checks,
         "waypoints": len(result.path), "path_length": None, "exact_colliding": None,
         "attempts": result.info.get("attempts", 1),  # > 1: planned again after a failed certification
     }
@@ -210,7 +207,7 @@ def summarize(records: Sequence[dict]) -> dict:
         statuses[r["status"]] = statuses.get(r["status"], 0) + 1
     search = time_summary([r["search_s"] for r in solved])
     simplify = time_summary([r["simplify_s"] for r in solved])
-    certify = time_summary([r["certify_s"] for r in solved])
+    certify = time_summary([r["certify_s"] for r in solved if r["certify_s"] is not None])
     return {
         "solved": len(solved), "total": len(records),
         "solved_fraction": len(solved) / len(records) if records else None,

@@ -30,7 +30,7 @@ def bench_ik(
     method: Optional[List[str]] = typer.Option(None, "--method", help="Our solvers, repeatable or comma list: "
                                                "dls, pinv, transpose, fabrik (position only), analytic (NAO arms). "
                                                "Default: dls."),
-    seed: int = typer.Option(0, "--seed", help="Seed of the targets and the restarts."),
+    seed: int = typer.Option(0, "--seed", min=0, help="Seed of the targets and the restarts."),
     budget: float = typer.Option(0.005, "--budget", help="Time budget per target (s)."),
     peers: List[str] = typer.Option(["pinocchio,ikpy"], "--peers", help="Peers, comma list: pinocchio, ikpy "
                                     "(or none)."),

@@ -29,7 +29,7 @@ def bench_mbm(
     planner: str = typer.Option("rrt_connect", "--planner", help="Our planner."),
     compare_ompl: bool = typer.Option(False, "--compare-ompl", help="Also run OMPL's RRT-Connect on every problem."),
     budget: float = typer.Option(1.0, "--budget", help="Search time limit per problem and planner (s)."),
-    seed: int = typer.Option(0, "--seed", help="Random seed."),
+    seed: int = typer.Option(0, "--seed", min=0, help="Random seed."),
     limit: int = typer.Option(0, "--limit", help="At most N problems per scenario (0: all)."),
     json_out: Optional[Path] = typer.Option(None, "--json", help="Write the full report (JSON) to this file."),
 ) -> None:

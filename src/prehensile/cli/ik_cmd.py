@@ -107,7 +107,7 @@ def ik(
     target: Optional[List[str]] = typer.Option(None, "--target", help="x y z (m): position only; x y z roll pitch "
                                                "yaw (m, rad): full pose of the chain's tip in the robot's root."),
     method: str = typer.Option("dls", "--method", help=f"One of {', '.join(METHODS)}."),
-    seed: int = typer.Option(0, "--seed", help="Seed of the random restarts."),
+    seed: int = typer.Option(0, "--seed", min=0, help="Seed of the random restarts."),
     budget: float = typer.Option(0.1, "--budget", help="Time budget (s) of the Jacobian methods."),
     as_json: bool = typer.Option(False, "--json", help="Print JSON instead of tables."),
 ) -> None:

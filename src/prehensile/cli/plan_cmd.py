@@ -1,15 +1,21 @@
 """``prehensile plan SCENE``: a collision-free path for one robot of a YAML scene.
 
-The start is the robot's configuration in the scene; the goal comes from ``--goal`` or the
-robot's ``goal:`` entry in the scene file (:func:`~prehensile.scene.files.robot_goals`). The
-planned joints are ``--chain``'s, else the joints the scene's goal names, else all of the
+The start is the robot's configuration in the scene. The goal is a configuration, from
+``--goal`` or the robot's ``goal:`` entry in the scene file
+(:func:`~prehensile.scene.files.robot_goals`), planned with RRT-Connect; or a world pose of
+``--chain``'s tip (``--target x y z roll pitch yaw``), planned with IK-RRT (goal
+configurations sampled by IK during the search) or J+-RRT (Jacobian steps toward the pose).
+The planned joints are ``--chain``'s, else the joints the scene's goal names, else all of the
 robot's; joints not planned stay at their start values. The world is the scene's obstacles
 and objects plus the other robots at their configurations.
 
-Writes to ``--out``: ``path.json`` (status, joint names, waypoints, statistics), on success
-``trajectory.json`` (time-optimal, rest to rest at each waypoint) and always ``plan.png``
-(the robot at the start, a few waypoints and the goal). Exit codes: 0 path found, 1 no path
-(the status says why, e.g. ``invalid_goal`` for a goal in collision), 2 bad input.
+Writes to ``--out``: ``path.json`` (status, joint names, waypoints, statistics;
+``path_length_m`` is the workspace-weighted length, a bound on how far any point of the robot
+travels), on success ``trajectory.json`` (time-optimal, rest to rest at each waypoint, with
+the limits used) and always ``plan.png`` (the robot at the start, a few waypoints and the
+goal). A failed plan removes the ``trajectory.json`` of an earlier one. Exit codes: 0 path
+found, 1 no path (the status says why, e.g. ``invalid_goal`` for a goal in collision), 2 bad
+input.
 """
 
 from __future__ import annotations
@@ -26,6 +32,8 @@ from prehensile.errors import PrehensileError, SceneError
 from prehensile.scene.scene import PlacedRobot, Scene
 
 EXIT_NO_PATH = 1
+CONFIGURATION_PLANNERS, POSE_PLANNERS = ("rrt_connect",), ("ik_rrt", "jplus_rrt")
+PLANNERS = CONFIGURATION_PLANNERS + POSE_PLANNERS
 PICTURE_WAYPOINTS = 3  # intermediate waypoints drawn besides start and goal
 
 
@@ -86,15 +94,46 @@ def goal_configuration(robot: PlacedRobot, joints: list[str], values: list[str] 
     return q
 
 
-def plan_report(result, ctx, scene: Path, robot: PlacedRobot, q_goal: np.ndarray, planner: str, seed: int) -> dict:
-    """The JSON of ``path.json``: start, goal and waypoints in the planned joints, the other
-    joints' values, status and statistics."""
+def parse_target(values: list[str]) -> np.ndarray:
+    """The world pose (4, 4) of ``x y z roll pitch yaw`` (m, rad)."""
+    from prehensile.cli.ik_cmd import parse_target as parse_ik_target
+
+    if len(values) != 6:
+        raise PrehensileError(f"--target: expected 6 values (x y z roll pitch yaw; m, rad), got {len(values)}: "
+                              f"{' '.join(values)}")
+    return parse_ik_target(values)
+
+
+def plan_to_target(context, placed: PlacedRobot, chain: str, planner: str, target: np.ndarray, budget: float,
+                   seed: int):
+    """A PlanResult from the robot's start to any configuration that puts ``chain``'s tip at
+    the world pose ``target`` (4, 4), by ``planner`` (one of :data:`POSE_PLANNERS`)."""
+    from prehensile.ik import ChainSolver
+    from prehensile.planning.ik_rrt import IKRRTSettings, grasp_sampler, ik_rrt
+    from prehensile.planning.jplus_rrt import JPlusRRTSettings, jplus_rrt
+
+    q_start, targets = placed.configuration, target[None]
+    if planner == "jplus_rrt":
+        return jplus_rrt(context, q_start, targets, settings=JPlusRRTSettings(time_budget_s=budget), rng=seed)
+    solver = ChainSolver(placed.model, chain, T_world_root=placed.T_world_base)
+    return ik_rrt(context, q_start, grasp_sampler(context, solver, targets, q_start),
+                  IKRRTSettings(time_budget_s=budget), rng=seed)
+
+
+def plan_report(result, ctx, scene: Path, robot: PlacedRobot, q_goal: np.ndarray | None, target: np.ndarray | None,
+                planner: str, seed: int) -> dict:
+    """The JSON of ``path.json``: start, goal (the configuration reached, for a target pose)
+    and waypoints in the planned joints, the target pose, the other joints' values, status and
+    statistics."""
     space = ctx.space
     fixed = [j for j in robot.model.joint_names if j not in space.joint_names]
+    if q_goal is None and result.success:
+        q_goal = result.path[-1]
     return {
         "scene": str(scene), "robot": robot.name, "planner": planner, "seed": seed, "status": result.status.value,
         "joint_names": list(space.joint_names), "start": space.active(robot.configuration).tolist(),
-        "goal": space.active(q_goal).tolist(),
+        "goal": None if q_goal is None else space.active(q_goal).tolist(),
+        "target": None if target is None else target.tolist(),
         "waypoints": space.active(result.path).tolist() if result.success else [],
         "fixed_joints": {j: float(space.q_ref[robot.model.joint_index(j)]) for j in fixed},
         "path_length_m": space.path_length(space.active(result.path)) if result.success else None,
@@ -120,17 +159,21 @@ def write_outputs(result, context, scene: Scene, robot: PlacedRobot, report: dic
     written = [atomic_write_json(out / "path.json", report)]
     if result.success:
         space = context.space
-        trajectory = time_parameterize(space.active(result.path), *model_limits(robot.model, space.indices),
+        velocity, acceleration = model_limits(robot.model, space.indices)
+        trajectory = time_parameterize(space.active(result.path), velocity, acceleration,
                                        joint_names=space.joint_names)
-        written.append(atomic_write_json(out / "trajectory.json", trajectory.to_dict()))
+        limits = {"velocity_limits": velocity.tolist(), "acceleration_limits": acceleration.tolist()}
+        written.append(atomic_write_json(out / "trajectory.json", {**trajectory.to_dict(), **limits}))
         inner = result.path[1:-1]
         picks = inner[np.linspace(0, len(inner) - 1, min(PICTURE_WAYPOINTS, len(inner))).round().astype(int)]
         shown = np.concatenate([result.path[:1], picks, result.path[-1:]])
         title = (f"{robot.name} from start (blue-grey) to goal: {len(result.path)} waypoints, "
-                 f"{report['path_length_m']:.2f} m, {trajectory.duration:.2f} s")
+                 f"{report['path_length_m']:.2f} m weighted length, {trajectory.duration:.2f} s")
     else:
-        shown = context.space.full(np.array([report["start"], report["goal"]]))
-        title = f"{robot.name}: no path ({result.status.value}); start and goal shown"
+        (out / "trajectory.json").unlink(missing_ok=True)  # never leave an earlier plan's trajectory
+        known = [report["start"]] + ([] if report["goal"] is None else [report["goal"]])
+        shown = context.space.full(np.array(known))
+        title = f"{robot.name}: no path ({result.status.value}); start{' and goal' if len(known) == 2 else ''} shown"
     written.append(render_scene(picture_scene(scene, robot, shown), out / "plan.png", title=title))
     return written
 
@@ -146,21 +189,33 @@ def plan(
                                         "of the scene's goal, else all)."),
     goal: Optional[List[str]] = typer.Option(None, "--goal", help="Goal values, one per planned joint (rad or m): "
                                              "--goal v1 v2 ... (default: the scene's goal)."),
-    planner: str = typer.Option("rrt_connect", "--planner", help="Planner."),
+    target: Optional[List[str]] = typer.Option(None, "--target", help="Goal pose of --chain's tip in the world "
+                                               "instead: --target x y z roll pitch yaw (m, rad)."),
+    planner: Optional[str] = typer.Option(None, "--planner", help="rrt_connect (to a configuration; the default) "
+                                          "or, to a --target pose, ik_rrt (the default) or jplus_rrt."),
     budget: float = typer.Option(1.0, "--budget", help="Search time limit (s)."),
-    seed: int = typer.Option(0, "--seed", help="Random seed."),
+    seed: int = typer.Option(0, "--seed", min=0, help="Random seed."),
     out: Path = typer.Option(Path("prehensile-plan"), "--out", help="Folder for path.json, trajectory.json, plan.png."),
 ) -> None:
-    """Plan from the robot's scene configuration to a goal; exit 0 found, 1 no path, 2 bad input."""
-    from prehensile.benchmarking.mbm import PLANNERS
+    """Plan from the robot's scene configuration to a goal configuration or tool pose; exit 0
+    found, 1 no path, 2 bad input."""
     from prehensile.planning import PlanningContext, RRTConnectSettings, rrt_connect
     from prehensile.scene.check import robot_obstacles
     from prehensile.scene.files import load_scene, robot_goals
 
-    if ctx.args and not goal:
+    if goal and target:
+        raise PrehensileError("give either --goal (a configuration) or --target (a tool pose), not both")
+    if ctx.args and not (goal or target):
         raise PrehensileError(f"unexpected arguments {' '.join(ctx.args)}; give goal values after --goal")
+    planner = planner or (POSE_PLANNERS[0] if target else CONFIGURATION_PLANNERS[0])
     if planner not in PLANNERS:
         raise PrehensileError(f"--planner: unknown planner '{planner}'; valid: {', '.join(PLANNERS)}")
+    if (planner in POSE_PLANNERS) != bool(target):
+        raise PrehensileError(f"--planner {planner} plans to " + (
+            "a tool pose: give --target x y z roll pitch yaw and --chain" if planner in POSE_PLANNERS else
+            f"a configuration; for a --target pose use {' or '.join(POSE_PLANNERS)}"))
+    if target and chain is None:
+        raise PrehensileError("--target: give --chain, the chain whose tip goes to the pose")
     if not budget > 0:
         raise PrehensileError(f"--budget: must be positive (s), got {budget}")
     path = scene_path(scene)
@@ -175,15 +230,18 @@ def plan(
         joints = list(scene_goal)
     else:
         joints = list(model.joint_names)
-    values = list(goal or []) + list(ctx.args)
-    q_goal = goal_configuration(placed, joints, values, scene_goal)
+    pose = parse_target(list(target) + list(ctx.args)) if target else None
+    q_goal = None if target else goal_configuration(placed, joints, list(goal or []) + list(ctx.args), scene_goal)
     q_start = placed.configuration
     obstacles = loaded.collision_obstacles() + [o for r in loaded.robots if r.name != placed.name
                                                 for o in robot_obstacles(r)]
     context = PlanningContext(model, obstacles, joints=joints, q_ref=q_start, T_world_base=placed.T_world_base)
-    result = rrt_connect(context, q_start, q_goal, settings=RRTConnectSettings(time_budget_s=budget),
-                         rng=np.random.default_rng(seed))
-    report = plan_report(result, context, path, placed, q_goal, planner, seed)
+    if pose is None:
+        result = rrt_connect(context, q_start, q_goal, settings=RRTConnectSettings(time_budget_s=budget),
+                             rng=np.random.default_rng(seed))
+    else:
+        result = plan_to_target(context, placed, chain, planner, pose, budget, seed)
+    report = plan_report(result, context, path, placed, q_goal, pose, planner, seed)
     written = write_outputs(result, context, loaded, placed, report, out)
     stats = result.stats
     console.print(f"status: [{'green' if result.success else 'bold red'}]{result.status.value}[/]  "

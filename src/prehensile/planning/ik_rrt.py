@@ -125,6 +125,8 @@ def multi_eef_rrt(ctx: PlanningContext | dict[str, PlanningContext], q_start: np
     Returns:
         :class:`PlanResult` with ``end_effector`` the hand that grasps.
     """
+    for context in (ctx.values() if isinstance(ctx, dict) else (ctx,)):
+        context.warm_up(settings.rrt.certify or settings.rrt.escape)
     start = clock()
     deadline = start + settings.time_budget_s
     rng = np.random.default_rng(rng)

@@ -229,6 +229,7 @@ def regrasp_jplus_rrt(ctx: PlanningContext, q_start: np.ndarray, arms: Sequence[
 def _grow(ctx: PlanningContext, q_start: np.ndarray, goals, s: JPlusRRTSettings,
           rng: np.random.Generator | int | None) -> PlanResult:
     """The J+-RRT loop (Alg. 13) over ``goals`` (:class:`_PoseGoals` or :class:`_GraspPairGoals`)."""
+    ctx.warm_up(s.certify)
     start_time = clock()
     rng = np.random.default_rng(rng)
     q_start = np.array(ctx.model.check_configuration(q_start, "q_start"), dtype=float)

@@ -376,6 +376,7 @@ class RRTConnectSearch:
 
     def __init__(self, ctx: PlanningContext, q_start: np.ndarray, settings: RRTConnectSettings = RRTConnectSettings(),
                  rng: np.random.Generator | None = None) -> None:
+        ctx.warm_up(settings.certify or settings.escape)
         started = clock()
         self.ctx, self.settings = ctx, settings
         self.rng = np.random.default_rng(0) if rng is None else rng

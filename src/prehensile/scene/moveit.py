@@ -127,7 +127,8 @@ def load_motion_plan_request(path: str | os.PathLike) -> MotionPlanRequest:
     return motion_plan_request_from_dict(_read_yaml_file(path), str(path))
 
 
-def iter_mbm_problems(path: str | os.PathLike, robot: RobotModel | None = None) -> Iterator[MBMProblem]:
+def iter_mbm_problems(path: str | os.PathLike, robot: RobotModel | None = None,
+                      per_scenario: int = 0) -> Iterator[MBMProblem]:
     """Every sceneNNNN / requestNNNN pair under a folder or in a ``.tar.bz2`` (read in memory).
 
     Problems come sorted by scenario (the folder holding the pair) and index. Each unpacks as
@@ -136,6 +137,8 @@ def iter_mbm_problems(path: str | os.PathLike, robot: RobotModel | None = None) 
     Args:
         path: a folder (searched recursively) or a tar archive (any compression tarfile reads).
         robot: passed to :func:`load_moveit_scene`.
+        per_scenario: if > 0, only the first that many problems of each scenario (the others
+            are not parsed).
 
     Raises:
         SceneError: the path does not exist, or a scene has no request (or vice versa).
@@ -147,7 +150,11 @@ def iter_mbm_problems(path: str | os.PathLike, robot: RobotModel | None = None) 
         if match:
             key = (Path(name).parent.name, int(match.group(2)))
             texts.setdefault(key, {})[match.group(1)] = (name, read())
+    counts: dict[str, int] = {}
     for (scenario, index), pair in sorted(texts.items()):
+        counts[scenario] = counts.get(scenario, 0) + 1
+        if 0 < per_scenario < counts[scenario]:
+            continue
         if set(pair) != {"scene", "request"}:
             missing = "request" if "scene" in pair else "scene"
             raise SceneError(f"{path}: {scenario} problem {index:04d} has no {missing} file")
