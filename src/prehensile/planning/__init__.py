@@ -1,14 +1,29 @@
-"""Motion planning: configuration space, planning context, RRT-Connect, shortcutting and exact
-certification (Vahrenkamp 2011 ch. 2, appendices B and C.2)."""
+"""Motion planning: configuration space, planning context, RRT-Connect, J+-RRT, IK-RRT,
+shortcutting, exact certification and time parameterization (Vahrenkamp 2011 ch. 2, 4,
+appendices B and C.2)."""
 
 from prehensile.planning.certify import CertifyReport, certify_path
 from prehensile.planning.context import AttachedObject, PlanningContext
 from prehensile.planning.cspace import ConfigurationSpace
+from prehensile.planning.ik_rrt import IKRRTSettings, grasp_sampler, ik_rrt, multi_eef_rrt
+from prehensile.planning.jplus_rrt import JPlusRRTSettings, jplus_rrt
 from prehensile.planning.result import PlanResult, PlanStats, PlanStatus
 from prehensile.planning.rrt_connect import RRTConnectSearch, RRTConnectSettings, rrt_connect
 from prehensile.planning.shortcut import shortcut
 
+_TRAJECTORY = ("Trajectory", "model_limits", "time_parameterize")
+
 __all__ = [
-    "AttachedObject", "CertifyReport", "ConfigurationSpace", "PlanResult", "PlanStats", "PlanStatus",
-    "PlanningContext", "RRTConnectSearch", "RRTConnectSettings", "certify_path", "rrt_connect", "shortcut",
+    "AttachedObject", "CertifyReport", "ConfigurationSpace", "IKRRTSettings", "JPlusRRTSettings", "PlanResult",
+    "PlanStats", "PlanStatus", "PlanningContext", "RRTConnectSearch", "RRTConnectSettings", "certify_path",
+    "grasp_sampler", "ik_rrt", "jplus_rrt", "multi_eef_rrt", "rrt_connect", "shortcut", *_TRAJECTORY,
 ]
+
+
+def __getattr__(name: str):
+    """The trajectory names, imported on first use (toppra takes about a second to import)."""
+    if name in _TRAJECTORY:
+        from prehensile.planning import trajectory
+
+        return getattr(trajectory, name)
+    raise AttributeError(f"module 'prehensile.planning' has no attribute '{name}'")
