@@ -91,6 +91,8 @@ def test_check_exit_codes():
     data = json.loads(colliding.stdout)
     assert data["free"] is False and data["robots"][0]["colliding_links"] == ["link2"]
     assert data["colliding_bodies"] == ["post"]
+    bundled = _run("check", "plan_demo")  # a bundled scene by name, as for plan
+    assert bundled.exit_code == 0, bundled.output
 
 
 def test_check_bad_scene_file(tmp_path):

@@ -147,8 +147,9 @@ def test_missing_and_malformed_files(tmp_path):
         load_scene(tmp_path / "none.yaml")
     broken = tmp_path / "broken.yaml"
     broken.write_text("robots: [unclosed\n")
-    with pytest.raises(SceneError, match="broken.yaml: not valid YAML"):
+    with pytest.raises(SceneError, match="broken.yaml: not valid YAML") as error:
         load_scene(broken)
+    assert f'in "{broken}", line 2' in str(error.value)  # yaml's own position names the file too
     assert load_scene(_write(tmp_path, {}, "empty.yaml")).bodies == ()
 
 

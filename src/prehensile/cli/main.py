@@ -103,7 +103,7 @@ def fk(
 @app.command("check")
 @handles_errors
 def check(
-    scene: Path = typer.Argument(..., help="YAML scene file."),
+    scene: str = typer.Argument(..., help="YAML scene file or bundled scene name (e.g. demo)."),
     exact: bool = typer.Option(True, "--exact/--spheres", help="Exact meshes (coal) or the sphere models."),
     as_json: bool = typer.Option(False, "--json", help="Print JSON instead of tables."),
 ) -> None:
@@ -111,9 +111,10 @@ def check(
 
     Exit code 0 when collision-free, 1 when something collides, 2 on bad input.
     """
+    from prehensile.cli.plan_cmd import scene_path
     from prehensile.scene import check_scene, load_scene
 
-    loaded = load_scene(scene)
+    loaded = load_scene(scene_path(scene))
     result = check_scene(loaded, "exact" if exact else "spheres")
     if as_json:
         echo_json({"scene": str(scene), **result.to_dict()})

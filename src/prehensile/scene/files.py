@@ -69,7 +69,8 @@ def load_scene(path: str | os.PathLike) -> Scene:
     if not path.is_file():
         raise SceneError(f"{path}: scene file not found")
     try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8"))
+        with path.open(encoding="utf-8") as stream:  # yaml's messages then name the file
+            data = yaml.safe_load(stream)
     except yaml.YAMLError as err:
         raise SceneError(f"{path}: not valid YAML ({err})") from None
     except UnicodeDecodeError:
