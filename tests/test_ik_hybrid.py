@@ -62,7 +62,7 @@ def test_same_seed_same_result_and_bad_arguments(armar):
     far = np.eye(4)
     far[:3, 3] = [0.0, 0.0, 9.0]
     timeout = solve_ik_hybrid([left], [far], "Torso", rng=0, settings=HybridIKSettings(time_budget_s=0.02))
-    assert timeout.status is IKStatus.TIMEOUT and timeout.time_s < 0.05
+    assert timeout.status is IKStatus.TIMEOUT and 0.02 <= timeout.time_s < 0.02 + 0.2
 
 
 def test_regrasp_ik_finds_a_hand_over_pose(armar):

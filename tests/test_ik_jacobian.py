@@ -97,7 +97,7 @@ def test_unreachable_target_is_a_status_within_budget():
     result = solve_ik_complete(solver, target, rng=0, settings=CompleteIKSettings(time_budget_s=0.02))
     assert result.status is IKStatus.TIMEOUT
     assert result.solutions.shape == (0, model.dof)
-    assert result.time_s < 0.02 + 0.01
+    assert 0.02 <= result.time_s < 0.02 + 0.2  # stops after the budget; the margin absorbs host noise
     assert result.restarts > 0 and model.within_limits(result.q)
     capped = solve_ik_complete(solver, target, rng=0, settings=CompleteIKSettings(time_budget_s=10, max_restarts=5))
     assert capped.status is IKStatus.NOT_CONVERGED and capped.restarts == 5
