@@ -73,6 +73,7 @@ def test_bench_mbm_ours(problem_dir, tmp_path):
     assert overall["colliding_paths"] == 0  # ours are certified on the exact meshes
     assert overall["certify_median_ms"] > 0
     assert report["robot"]["joints"] == [f"panda_joint{i}" for i in range(1, 8)]
+    assert report["robot"]["srdf"] == str(MBM / "panda" / "panda.srdf")
     assert report["versions"]["numpy"] == np.__version__
     assert report["command"].startswith("prehensile bench mbm")
 

@@ -97,8 +97,10 @@ def test_load_urdf_by_path_picks_up_the_srdf(tmp_path):
         shutil.copy(ROBOTS / "nao" / f"nao{suffix}", tmp_path / f"copy{suffix}")
     model = robots.load(tmp_path / "copy.urdf")
     assert model.dof == 25 and "left_arm" in model.chains
+    assert model.srdf_source == str(tmp_path / "copy.srdf")
     (tmp_path / "copy.srdf").unlink()
-    assert not robots.load(str(tmp_path / "copy.urdf")).chains
+    bare = robots.load(str(tmp_path / "copy.urdf"))
+    assert not bare.chains and bare.srdf_source is None
 
 
 def test_load_with_explicit_srdf(tmp_path):
@@ -106,7 +108,7 @@ def test_load_with_explicit_srdf(tmp_path):
     srdf.write_text('<robot name="nao"><group name="only_head"><chain base_link="torso" tip_link="Head"/>'
                     "</group></robot>")
     model = robots.load("nao", srdf=srdf)
-    assert set(model.chains) == {"only_head"}
+    assert set(model.chains) == {"only_head"} and model.srdf_source == str(srdf)
     assert model is not robots.load("nao")
 
 

@@ -58,7 +58,7 @@ def bench_mbm(
                "--seed": seed, "--limit": limit, "--json": json_out}
     words = ["prehensile", "bench", "mbm", str(problems)] + ["--compare-ompl"] * compare_ompl + ["--pad"] * pad
     report["command"] = shlex.join(words + [str(w) for k, v in options.items() if v is not None for w in (k, v)])
-    report["robot"].update(urdf=str(robot), srdf=None if srdf is None else str(srdf),
+    report["robot"].update(urdf=str(robot), srdf=model.srdf_source,
                            spherized_urdf=None if spheres is None else str(spheres),
                            sphere_model="generated" if spheres is None else "padded" if pad else "as given, padded where certification fails")
     print_report(report)

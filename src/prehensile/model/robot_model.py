@@ -71,7 +71,8 @@ class RobotModel:
     ``joint_axis`` (L, 3) unit axis in the joint frame, ``joint_q_index`` (L,) index into q
     (-1 for fixed), ``joint_multiplier`` and ``joint_offset`` (L,) for mimic joints.
     Per-DoF arrays (dof,) hold limits in rad or m: ``lower``, ``upper`` (+-inf for continuous
-    joints), ``velocity_limit`` (rad/s or m/s).
+    joints), ``velocity_limit`` (rad/s or m/s). ``source`` names the description file,
+    ``srdf_source`` the SRDF applied to it (None if none was).
     """
 
     name: str
@@ -94,6 +95,7 @@ class RobotModel:
     chains: Mapping[str, Chain] = field(default_factory=dict)
     end_effectors: Mapping[str, EndEffector] = field(default_factory=dict)
     disabled_collision_pairs: frozenset[frozenset[str]] = frozenset()
+    srdf_source: str | None = None
 
     def __post_init__(self) -> None:
         for name, dtype in [

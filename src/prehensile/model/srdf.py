@@ -99,5 +99,6 @@ def apply_srdf(model: RobotModel, path: str | Path) -> RobotModel:
         if a != b:
             disabled.add(frozenset((a, b)))
     return dataclasses.replace(
-        model, chains=chains, end_effectors=end_effectors, disabled_collision_pairs=frozenset(disabled)
+        model, chains=chains, end_effectors=end_effectors, disabled_collision_pairs=frozenset(disabled),
+        srdf_source=source,
     )
