@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 import time
 
 import numpy as np
@@ -155,6 +156,10 @@ def test_invalid_start_and_goal(arm):
     assert rrt_connect(ctx, np.zeros(3), free, settings).status is PlanStatus.INVALID_START
     assert rrt_connect(ctx, free, np.zeros(3), settings).status is PlanStatus.INVALID_GOAL
     assert rrt_connect(ctx, free, np.array([0.0, 2.9, 0.0]), settings).status is PlanStatus.INVALID_GOAL  # limits
+    assert re.fullmatch(r"\w+ collides with block \(\d+\.\d mm deep\)(; .*)?", ctx.why_invalid(np.zeros(3)))
+    assert re.fullmatch(r"joint \w+ = 2\.9 outside its limits \[-?[\d.]+, [\d.]+\]",
+                        ctx.why_invalid(np.array([0.0, 2.9, 0.0])))
+    assert ctx.why_invalid(free) == ""
     with pytest.raises(Exception, match="q_goal"):
         rrt_connect(ctx, free, np.zeros(4), settings)
 

@@ -124,7 +124,9 @@ def plan_report(result, ctx, scene: Path, robot: PlacedRobot, q_goal: np.ndarray
                 planner: str, seed: int) -> dict:
     """The JSON of ``path.json``: start, goal (the configuration reached, for a target pose)
     and waypoints in the planned joints, the target pose, the other joints' values, status and
-    statistics."""
+    statistics; for an invalid start or goal, why (``reason``)."""
+    from prehensile.planning import PlanStatus
+
     space = ctx.space
     fixed = [j for j in robot.model.joint_names if j not in space.joint_names]
     if q_goal is None and result.success:
@@ -138,6 +140,9 @@ def plan_report(result, ctx, scene: Path, robot: PlacedRobot, q_goal: np.ndarray
         "fixed_joints": {j: float(space.q_ref[robot.model.joint_index(j)]) for j in fixed},
         "path_length_m": space.path_length(space.active(result.path)) if result.success else None,
         "stats": dataclasses.asdict(result.stats),
+        "reason": (ctx.why_invalid(robot.configuration) if result.status is PlanStatus.INVALID_START
+                   else ctx.why_invalid(q_goal) if result.status is PlanStatus.INVALID_GOAL and q_goal is not None
+                   else None),
     }
 
 
@@ -199,7 +204,7 @@ def plan(
 ) -> None:
     """Plan from the robot's scene configuration to a goal configuration or tool pose; exit 0
     found, 1 no path, 2 bad input."""
-    from prehensile.planning import PlanningContext, RRTConnectSettings, rrt_connect
+    from prehensile.planning import PlanningContext, PlanStatus, RRTConnectSettings, rrt_connect
     from prehensile.scene.check import robot_obstacles
     from prehensile.scene.files import load_scene, robot_goals
 
@@ -247,6 +252,8 @@ def plan(
     console.print(f"status: [{'green' if result.success else 'bold red'}]{result.status.value}[/]  "
                   f"search {1e3 * stats.plan_time_s:.2f} ms, simplify {1e3 * stats.simplify_time_s:.2f} ms, "
                   f"certify {1e3 * stats.certify_time_s:.2f} ms, {len(result.path)} waypoints")
+    if report["reason"]:
+        console.print(f"{'start' if result.status is PlanStatus.INVALID_START else 'goal'}: {report['reason']}")
     console.print("wrote " + ", ".join(str(p) for p in written))
     raise typer.Exit(0 if result.success else EXIT_NO_PATH)
 

@@ -346,6 +346,28 @@ class PlanningContext:
         q = self.model.check_configuration(q)
         return self.model.within_limits(q) & self.spheres.is_free(q)
 
+    def why_invalid(self, q: np.ndarray) -> str:
+        """Why a planner rejects q (dof,) as a path end (INVALID_START / INVALID_GOAL), in words:
+        the joints outside their limits, else the contacts on the exact geometry (link, what it
+        touches, depth), else that only the conservative sphere model collides (and no
+        certified escape motion was found); "" if q is within the limits and the balls are free."""
+        q = self.model.check_configuration(q)
+        names, lower, upper = self.model.joint_names, self.model.lower, self.model.upper
+        outside = np.flatnonzero(~((q >= lower - 1e-9) & (q <= upper + 1e-9)))
+        if len(outside):
+            return "; ".join(f"joint {names[i]} = {q[i]:.4g} outside its limits [{lower[i]:.4g}, {upper[i]:.4g}]"
+                             for i in outside)
+        deepest: dict[tuple[str, str], float] = {}  # per pair of link and obstacle or link, over their parts
+        for link, other, depth in self.exact.collisions(q):
+            deepest[link, other] = max(depth, deepest.get((link, other), 0.0))
+        if deepest:
+            return "; ".join(f"{link} collides with {other} ({1e3 * depth:.1f} mm deep)"
+                             for (link, other), depth in deepest.items())
+        if not self.spheres.is_free(q):
+            return ("free on the exact geometry, but the sphere model's conservative balls collide "
+                    "and no certified escape motion was found")
+        return ""
+
     def check_motion(self, qa: np.ndarray, qb: np.ndarray, resolution: float | None = None) -> bool:
         """True if both ends are valid and the straight segment qa -> qb (full configurations
         (dof,)) is free for the sphere model, proven by clearance bubbles or sampled at

@@ -549,7 +549,8 @@ def rrt_connect(ctx: PlanningContext, q_start: np.ndarray, q_goal: np.ndarray,
         (links planned on covering balls, see ``settings.certify_retries``) and ``certify``
         (:class:`CertifyReport`, if certified). INVALID_START /
         INVALID_GOAL when the start / every goal is outside the limits, or in collision for
-        the sphere model without a certified escape (see ``settings.escape``); TIMEOUT when
+        the sphere model without a certified escape (see ``settings.escape``;
+        :meth:`~prehensile.planning.context.PlanningContext.why_invalid` says which); TIMEOUT when
         the budget ran out (or every tree filled up); CERTIFICATION_FAILED when every path
         found failed the exact check.
     """
