@@ -17,7 +17,7 @@ from prehensile.errors import PrehensileError
 @bench_app.command("mbm")
 @handles_errors
 def bench_mbm(
-    problems: Path = typer.Argument(..., help="Folder or .tar.bz2 of MoveIt sceneNNNN.yaml / requestNNNN.yaml pairs."),
+    problems: Path = typer.Argument(..., metavar="PROBLEMS", help="Folder or .tar.bz2 of MoveIt sceneNNNN.yaml / requestNNNN.yaml pairs."),
     robot: str = typer.Option(..., "--robot", help="Robot URDF (or a bundled robot name)."),
     spheres: Optional[Path] = typer.Option(None, "--spheres", help="Spherized URDF whose balls to plan with "
                                            "(default: balls generated from the meshes)."),
