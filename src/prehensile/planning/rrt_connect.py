@@ -22,9 +22,9 @@ although the exact geometry is free; they get a short escape motion certified ex
 (:func:`~prehensile.planning.certify.certified_escape`) as their first tree edge.
 
 numba cannot read the clock, so Python runs the kernel in chunks of iterations and checks the
-time budget between them (chunks sized from the measured time per iteration); all state
-(trees, counters, the splitmix64 generator seeded from ``rng``) lives in arrays, so the result
-does not depend on where the chunks end. Trees start small and double when full, up to
+time budget between them (chunks sized from the budget and the measured time per iteration);
+all state (trees, counters, the splitmix64 generator seeded from ``rng``) lives in arrays, so
+the result does not depend on where the chunks end. Trees start small and double when full, up to
 ``max_nodes``.
 
 Afterwards the path is shortcut (:func:`~prehensile.planning.shortcut.shortcut`, random
@@ -456,7 +456,8 @@ class RRTConnectSearch:
         space, trees, settings = self.context.space, self.trees, self.settings
         work = (space.lower, space.upper, self.start.copy(), self.context.spheres.data, self.context.scratch,
                 self.context.motion_arrays(self.res))
-        chunk = 128
+        # a quarter of the time left at a guessed 20 us per iteration (most take 5 to 50), at most 128
+        chunk = int(min(max(0.25 * (deadline - clock()) / 20e-6, 1), 128))
         while True:
             begun, before = clock(), trees.counters[ITERATIONS]
             code = search(trees.nodes, trees.parents, trees.flags, trees.points, trees.work, trees.counters, trees.path,
