@@ -27,7 +27,8 @@ def bench_ik(
     base: str = typer.Option(..., "--base", help="Base link of the chain."),
     tip: str = typer.Option(..., "--tip", help="Tip link of the chain (the tool frame)."),
     n: int = typer.Option(10_000, "--n", help="Number of random reachable targets."),
-    method: Optional[List[str]] = typer.Option(None, "--method", metavar="METHOD", help="Our solvers, repeatable or comma list: "
+    method: Optional[List[str]] = typer.Option(None, "--method", metavar="METHOD",
+                                               help="Our solvers, repeatable or comma list: "
                                                "dls, pinv, transpose, fabrik (position only), analytic (NAO arms). "
                                                "Default: dls."),
     seed: int = typer.Option(0, "--seed", min=0, help="Seed of the targets and the restarts."),

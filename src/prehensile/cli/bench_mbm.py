@@ -17,7 +17,8 @@ from prehensile.errors import PrehensileError
 @bench_app.command("mbm")
 @handles_errors
 def bench_mbm(
-    problems: Path = typer.Argument(..., metavar="PROBLEMS", help="Folder or .tar.bz2 of MoveIt sceneNNNN.yaml / requestNNNN.yaml pairs."),
+    problems: Path = typer.Argument(..., metavar="PROBLEMS",
+                                    help="Folder or .tar.bz2 of MoveIt sceneNNNN.yaml / requestNNNN.yaml pairs."),
     robot: str = typer.Option(..., "--robot", help="Robot URDF (or a bundled robot name)."),
     spheres: Optional[Path] = typer.Option(None, "--spheres", help="Spherized URDF whose balls to plan with "
                                            "(default: balls generated from the meshes)."),
@@ -60,7 +61,8 @@ def bench_mbm(
     report["command"] = shlex.join(words + [str(w) for k, v in options.items() if v is not None for w in (k, v)])
     report["robot"].update(urdf=str(robot), srdf=model.srdf_source,
                            spherized_urdf=None if spheres is None else str(spheres),
-                           sphere_model="generated" if spheres is None else "padded" if pad else "as given, padded where certification fails")
+                           sphere_model="generated" if spheres is None else "padded" if pad
+                           else "as given, padded where certification fails")
     print_report(report)
     if json_out is not None:
         atomic_write_json(json_out, report)

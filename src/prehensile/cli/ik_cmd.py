@@ -104,7 +104,8 @@ def ik(
     ctx: typer.Context,
     robot: str = typer.Argument(..., metavar="ROBOT", help="Bundled robot name or model file path."),
     chain: str = typer.Option(..., "--chain", help="Chain of the robot (see `prehensile robot info`)."),
-    target: Optional[List[str]] = typer.Option(None, "--target", metavar="X Y Z [R P Y]", help="x y z (m): position only; x y z roll pitch "
+    target: Optional[List[str]] = typer.Option(None, "--target", metavar="X Y Z [R P Y]",
+                                               help="x y z (m): position only; x y z roll pitch "
                                                "yaw (m, rad): full pose of the chain's tip in the robot's root."),
     method: str = typer.Option("dls", "--method", help=f"One of {', '.join(METHODS)}."),
     seed: int = typer.Option(0, "--seed", min=0, help="Seed of the random restarts."),

@@ -35,7 +35,8 @@ def _fmt(value: float | None, digits: int = 4) -> str:
 @robot_app.command("info")
 @handles_errors
 def robot_info(
-    robot: str = typer.Argument(..., metavar="ROBOT", help="Bundled robot name (see `prehensile robot list`) or model file path."),
+    robot: str = typer.Argument(..., metavar="ROBOT",
+                                help="Bundled robot name (see `prehensile robot list`) or model file path."),
     as_json: bool = typer.Option(False, "--json", help="Print JSON instead of tables."),
 ) -> None:
     """Degrees of freedom, joints and limits, chains, end effectors and preshapes."""
@@ -80,7 +81,8 @@ def robot_list() -> None:
 def fk(
     ctx: typer.Context,
     robot: str = typer.Argument(..., metavar="ROBOT", help="Bundled robot name or model file path."),
-    q: Optional[List[str]] = typer.Option(None, "--q", metavar="V...", help="Joint values (rad or m): --q v1 v2 ... (default neutral)."),
+    q: Optional[List[str]] = typer.Option(None, "--q", metavar="V...",
+                                          help="Joint values (rad or m): --q v1 v2 ... (default neutral)."),
     link: Optional[str] = typer.Option(None, "--link", help="Only this link (default: all links)."),
     as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table."),
 ) -> None:

@@ -187,14 +187,17 @@ def write_outputs(result, context, scene: Scene, robot: PlacedRobot, report: dic
 @handles_errors
 def plan(
     ctx: typer.Context,
-    scene: str = typer.Argument(..., metavar="SCENE", help="YAML scene file or bundled scene name (e.g. plan_demo)."),
+    scene: str = typer.Argument(..., metavar="SCENE",
+                                help="YAML scene file or bundled scene name (e.g. plan_demo)."),
     robot: Optional[str] = typer.Option(None, "--robot", help="Robot of the scene (default: the only one, "
                                         "or the only one with a goal)."),
     chain: Optional[str] = typer.Option(None, "--chain", help="Plan this chain's joints (default: the joints "
                                         "of the scene's goal, else all)."),
-    goal: Optional[List[str]] = typer.Option(None, "--goal", metavar="V...", help="Goal values, one per planned joint (rad or m): "
+    goal: Optional[List[str]] = typer.Option(None, "--goal", metavar="V...",
+                                             help="Goal values, one per planned joint (rad or m): "
                                              "--goal v1 v2 ... (default: the scene's goal)."),
-    target: Optional[List[str]] = typer.Option(None, "--target", metavar="X Y Z R P Y", help="Goal pose of --chain's tip in the world "
+    target: Optional[List[str]] = typer.Option(None, "--target", metavar="X Y Z R P Y",
+                                               help="Goal pose of --chain's tip in the world "
                                                "instead: --target x y z roll pitch yaw (m, rad)."),
     planner: Optional[str] = typer.Option(None, "--planner", help="rrt_connect (to a configuration; the default) "
                                           "or, to a --target pose, ik_rrt (the default) or jplus_rrt."),
