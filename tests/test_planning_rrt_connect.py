@@ -8,6 +8,7 @@ import time
 import numpy as np
 import pytest
 
+from prehensile import robots
 from prehensile.collision.spheres import SphereModel, generate_sphere_model
 from prehensile.collision.world import Obstacle
 from prehensile.errors import PrehensileError
@@ -160,8 +161,18 @@ def test_invalid_start_and_goal(arm):
     assert re.fullmatch(r"joint \w+ = 2\.9 outside its limits \[-?[\d.]+, [\d.]+\]",
                         ctx.why_invalid(np.array([0.0, 2.9, 0.0])))
     assert ctx.why_invalid(free) == ""
+    assert ctx.spheres.ball_contacts(free) == [] and ("l2", "world") in ctx.spheres.ball_contacts(np.zeros(3))
     with pytest.raises(Exception, match="q_goal"):
         rrt_connect(ctx, free, np.zeros(4), settings)
+
+
+def test_why_invalid_names_the_balls_that_collide_where_the_geometry_is_free():
+    nao = robots.load("nao")
+    ctx = PlanningContext(nao, [], joints="left_arm")  # the right arm stays put, its biceps' balls in the torso's
+    q = nao.neutral_configuration()
+    assert ctx.exact.is_free(q) and not ctx.is_valid(q)
+    assert ("torso", "RBicep") in ctx.spheres.ball_contacts(q)
+    assert ctx.why_invalid(q).startswith("free on the exact geometry") and "torso with RBicep" in ctx.why_invalid(q)
 
 
 def test_goal_set_reports_the_goal_reached(arm):
@@ -474,3 +485,22 @@ def test_mbm_search_paths_pass_the_sphere_motion_check():
     settings = RRTConnectSettings(time_budget_s=2.0, eager_checks=8, shortcut=False, certify=False)
     path = rrt_connect(ctx, prepared.q_start, prepared.q_goal, settings, np.random.default_rng(251)).path
     assert len(path) >= 2 and all(ctx.check_motion(a, b) for a, b in zip(path[:-1], path[1:]))
+
+
+def test_a_robot_standing_on_a_table_plans():
+    """The base's balls reach below the base: only the exact geometry tells standing on a
+    table (free) from standing in it (every configuration collides)."""
+    panda = robots.load("panda")
+    ready = np.array([0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785, 0.02])
+    goal = ready.copy()
+    goal[0] = 1.0
+    for depth in (-0.001, 0.005):  # table top 1 mm below the base, 5 mm above its underside
+        table = _box("table", [0.5, 0.0, -0.02 + depth], [1.2, 1.6, 0.04])
+        ctx = PlanningContext(panda, [table], joints="arm", q_ref=ready)
+        result = rrt_connect(ctx, ready, goal, FAST, np.random.default_rng(0))
+        if depth < 0:
+            assert not ctx.spheres.static_hit and ctx.why_invalid(ready) == ""
+            _check_result(ctx, result, ready, goal)
+        else:
+            assert result.status is PlanStatus.INVALID_START
+            assert ctx.why_invalid(ready) == "panda_link0 collides with table (5.0 mm deep)"

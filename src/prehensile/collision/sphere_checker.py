@@ -24,6 +24,7 @@ from prehensile.collision.sphere_fit import cover_geometries
 from prehensile.collision.spheres import SphereModel, generate_sphere_model
 from prehensile.collision.world import Obstacle
 from prehensile.errors import PrehensileError
+from prehensile.kinematics.forward import forward_kinematics
 from prehensile.model.geometry import Box, Capsule, Cylinder, Geometry, Mesh, Sphere
 from prehensile.model.robot_model import RobotModel
 
@@ -177,10 +178,13 @@ class SphereChecker:
         acm: (L, L) bool allowed-collision matrix (True = skip); default
             :func:`~prehensile.collision.acm.allowed_collision_matrix`.
         mesh_spheres: balls per mesh obstacle.
+        static_hit: whether the robot's root body meets an obstacle, if known (from the exact
+            geometry: the balls only bound it); None: decided by the root body's balls.
     """
 
     def __init__(self, model: RobotModel, obstacles: Sequence[Obstacle], T_world_base: np.ndarray | None = None,
-                 spheres: SphereModel | None = None, acm: np.ndarray | None = None, mesh_spheres: int = 32) -> None:
+                 spheres: SphereModel | None = None, acm: np.ndarray | None = None, mesh_spheres: int = 32,
+                 static_hit: bool | None = None) -> None:
         self.model = model
         self.spheres = generate_sphere_model(model) if spheres is None else spheres
         if tuple(self.spheres.link_names) != tuple(model.link_names):
@@ -216,12 +220,35 @@ class SphereChecker:
         world = self.data[:-1] + (np.zeros((0, 2), dtype=np.int64),)
         self._world_only = (world, K.unit_scales(world))
         # balls on the root body do not move: test them against the world once, here
-        static_data = list(self.data)
-        static_data[14] = static  # gtest: only the root body's groups
-        static_data[-1] = np.zeros((0, 2), dtype=np.int64)
-        self.static_hit = K.check_batch(np.zeros((1, model.dof)), tuple(static_data), self._scratch,
-                                        K.unit_scales(tuple(static_data)), np.empty(1, dtype=np.bool_), True) == 0
+        self.static_hit = self._hits_world(np.zeros(model.dof), static) if static_hit is None else bool(static_hit)
         """True if the robot's root body meets an obstacle: every configuration collides."""
+
+    def _hits_world(self, q: np.ndarray, groups: np.ndarray) -> bool:
+        """Whether a ball of the groups marked in ``groups`` (G,) bool meets an obstacle at q (dof,)."""
+        data = list(self.data)
+        data[14] = groups  # gtest
+        data[-1] = np.zeros((0, 2), dtype=np.int64)  # no self pairs
+        return K.check_batch(q[None], tuple(data), self._scratch, K.unit_scales(tuple(data)),
+                             np.empty(1, dtype=np.bool_), True) == 0
+
+    def ball_contacts(self, q: np.ndarray) -> list[tuple[str, str]]:
+        """Where the balls collide at one configuration q (dof,): (link, other link) for each
+        pair of links the ACM does not skip whose balls overlap, and (link, "world") for each
+        moving link whose balls meet an obstacle."""
+        q = self.model.check_configuration(q)
+        s, names = self.spheres, self.model.link_names
+        T = forward_kinematics(self.model, q, self.T_world_base)[s.sphere_link]
+        c = np.einsum("nij,nj->ni", T[:, :3, :3], s.centers) + T[:, :3, 3]
+        gap = np.linalg.norm(c[:, None] - c[None], axis=-1) - s.radii[:, None] - s.radii[None]
+        la, lb = np.broadcast_arrays(s.sphere_link[:, None], s.sphere_link[None])
+        hit = (gap < 0) & (la < lb) & ~self.acm[la, lb]
+        pairs = sorted({(int(a), int(b)) for a, b in zip(la[hit], lb[hit])})
+        out = [(names[a], names[b]) for a, b in pairs]
+        tested = self.data[14]
+        for g in np.flatnonzero(tested):
+            if self._hits_world(q, np.arange(len(tested)) == g):
+                out.append((names[self.group_links[g]], "world"))
+        return out
 
     def is_free(self, q: np.ndarray) -> np.ndarray:
         """(*batch,) bool: no ball meets an obstacle or a ball of a non-allowed link, for q

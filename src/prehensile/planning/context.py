@@ -254,8 +254,12 @@ class PlanningContext:
         self.collision_model, self.sphere_model, self.acm = attach_objects(model, base_spheres, base_acm, self.attached)
         centers, radii = self.sphere_model.link_bounds()
         self.space = ConfigurationSpace(self.collision_model, joints, q_ref, centers=centers, radii=radii)
+        self._exact_checkers: dict = {}  # exact checker and certifier, shared with refined contexts
         self.spheres = SphereChecker(self.collision_model, self.obstacles, self.T_world_base, self.sphere_model,
                                      self.acm)
+        if self.spheres.static_hit and not self._root_contacts():  # only the base's balls meet the world
+            self.spheres = SphereChecker(self.collision_model, self.obstacles, self.T_world_base, self.sphere_model,
+                                         self.acm, static_hit=False)
         self.motion = self._motion_tables()
         """(Wball (dof, S), Wgroup (G, D), qgroup (G, D), pcut (P, 2), scales, queue (Q, 2),
         q (dof,), dq (dof + 1,), below (G, D + 1), first column 0) for
@@ -269,13 +273,22 @@ class PlanningContext:
         :meth:`motion_arrays`)."""
         self.scratch = SK.make_scratch(self.spheres.data)
         self.counters = np.zeros(1, dtype=np.int64)
-        self._exact_checkers: dict = {}  # exact checker and certifier, shared with refined contexts
         self._balls, self._cover = base_spheres, None if self.sphere_model.covering else cover
         self.cover_model = self.sphere_model if self.sphere_model.covering else None if cover is None else \
             attach_objects(model, cover, base_acm, self.attached)[1]
         """Balls covering the geometry, objects included (for the certifier's bounds), or None."""
         self._refine_args = (joints, q_ref, acm)
         self._refined: dict[frozenset, PlanningContext] = {}
+
+    def _root_contacts(self) -> list[tuple[str, str, float]]:
+        """Contacts (link, obstacle, depth m) of the robot's root body with the world on the
+        exact geometry. The root body never moves, so its balls are tested against the world
+        once; a robot standing on a table is free although its base's balls reach into it."""
+        model, names = self.collision_model, {o.name for o in self.obstacles}
+        body = rigid_bodies(model)
+        root_body = body[np.flatnonzero(model.link_parent < 0)[0]]
+        root = {model.link_names[i] for i in np.flatnonzero(body == root_body)}
+        return [c for c in self.exact.collisions(self.space.q_ref) if c[0] in root and c[1] in names]
 
     def _motion_tables(self) -> tuple:
         model, checker = self.collision_model, self.spheres
@@ -347,10 +360,10 @@ class PlanningContext:
         return self.model.within_limits(q) & self.spheres.is_free(q)
 
     def why_invalid(self, q: np.ndarray) -> str:
-        """Why a planner rejects q (dof,) as a path end (INVALID_START / INVALID_GOAL), in words:
-        the joints outside their limits, else the contacts on the exact geometry (link, what it
-        touches, depth), else that only the conservative sphere model collides (and no
-        certified escape motion was found); "" if q is within the limits and the balls are free."""
+        """Why a planner may reject q (dof,) as a path end (INVALID_START / INVALID_GOAL), in
+        words: the joints outside their limits, else the contacts on the exact geometry (link,
+        what it touches, depth), else the links whose conservative balls collide although the
+        geometry is free; "" if q is within the limits and the balls are free."""
         q = self.model.check_configuration(q)
         names, lower, upper = self.model.joint_names, self.model.lower, self.model.upper
         outside = np.flatnonzero(~((q >= lower - 1e-9) & (q <= upper + 1e-9)))
@@ -363,9 +376,12 @@ class PlanningContext:
         if deepest:
             return "; ".join(f"{link} collides with {other} ({1e3 * depth:.1f} mm deep)"
                              for (link, other), depth in deepest.items())
-        if not self.spheres.is_free(q):
-            return ("free on the exact geometry, but the sphere model's conservative balls collide "
-                    "and no certified escape motion was found")
+        balls = self.spheres.ball_contacts(q)
+        if balls or self.spheres.static_hit:
+            where = ", ".join(f"{a} with {b}" for a, b in balls) or "the root body with the world"
+            return (f"free on the exact geometry, but the sphere model's conservative balls collide ({where}); "
+                    "a planner starts from such an end only along a certified escape motion, if it finds one "
+                    "(RRTConnectSettings.escape)")
         return ""
 
     def check_motion(self, qa: np.ndarray, qb: np.ndarray, resolution: float | None = None) -> bool:
