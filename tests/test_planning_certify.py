@@ -10,6 +10,7 @@ import trimesh
 
 from prehensile.collision.spheres import generate_sphere_model
 from prehensile.collision.world import Obstacle
+from prehensile.errors import PrehensileError
 from prehensile.model.builder import JointSpec, LinkSpec, build_model
 from prehensile.model.geometry import Box, Capsule, Geometry, Mesh
 from prehensile.kinematics import forward_kinematics
@@ -68,6 +69,20 @@ def test_waypoint_outside_limits_fails(arm):
     ctx = PlanningContext(model, [], spheres=spheres)
     report = certify_path(ctx, np.array([[0.0, 0.0], [0.5, 0.5], [0.5, 2.95]]))
     assert not report.ok and report.first_bad_segment == 1
+
+
+def test_bad_paths_and_resolutions_are_errors(arm):
+    model, spheres = arm
+    ctx = PlanningContext(model, [], spheres=spheres)
+    path = np.array([[0.0, 0.0], [0.5, 0.5]])
+    with pytest.raises(PrehensileError, match=r"shape \(N >= 1, 2\)"):
+        certify_path(ctx, np.zeros((0, 2)))
+    for resolution in (0.0, -1.0):
+        with pytest.raises(PrehensileError, match="resolution must be positive"):
+            certify_path(ctx, path, resolution)
+        with pytest.raises(PrehensileError, match="resolution must be positive"):
+            ctx.check_motion(path[0], path[1], resolution)
+    assert certify_path(ctx, path[:1]).ok
 
 
 def test_self_collision_is_caught(arm):

@@ -9,6 +9,7 @@ import pytest
 from prehensile import robots
 from prehensile.collision import Obstacle
 from prehensile.collision.spheres import generate_sphere_model
+from prehensile.errors import PrehensileError
 from prehensile.ik import ChainSolver, ObjectRegion
 from prehensile.model.geometry import Box
 from prehensile.planning import PlanningContext, PlanStatus, certify_path
@@ -52,19 +53,27 @@ def test_jplus_rrt_reaches_a_grasp(panda_scene):
     target = goals[result.goal_index]
     assert np.linalg.norm(tool[:3, 3] - target[:3, 3]) <= settings.position_tolerance
     assert np.linalg.norm(rotation_error(target[:3, :3], tool[:3, :3])) <= settings.rotation_tolerance
-    again = jplus_rrt(ctx, q0, goals, settings=settings, rng=1)
+    again = jplus_rrt(ctx, q0, goals, settings=settings, rng=np.random.default_rng(1))  # a seed or its generator
     assert np.array_equal(again.path, result.path)
 
 
 def test_ik_rrt_reaches_a_grasp(panda_scene):
     ctx, solver, q0, goals = panda_scene
-    result = ik_rrt(ctx, q0, grasp_sampler(ctx, solver, goals, q0), rng=2)
+    result = ik_rrt(ctx, q0, grasp_sampler(ctx, solver, goals, q0), rng=None)
     assert result.success and result.stats.ik_solutions >= 1
     assert_valid_path(ctx, result.path, q0)
     grasp = result.info["goal"]["grasp"]
     assert np.linalg.norm(solver.tool_pose(result.path[-1])[:3, 3] - goals[grasp, :3, 3]) <= 1e-4
-    again = ik_rrt(ctx, q0, grasp_sampler(ctx, solver, goals, q0), rng=2)
+    again = ik_rrt(ctx, q0, grasp_sampler(ctx, solver, goals, q0), rng=0)  # None is seed 0
     assert np.array_equal(again.path, result.path)
+
+
+def test_settings_are_validated():
+    with pytest.raises(PrehensileError, match="IKRRTSettings: the budgets must be positive"):
+        IKRRTSettings(time_budget_s=-1.0)
+    for bad in ({"goal_probability": 2.0}, {"time_budget_s": 0.0}, {"max_nodes": 0}):
+        with pytest.raises(PrehensileError, match="JPlusRRTSettings: need"):
+            JPlusRRTSettings(**bad)
 
 
 def test_unreachable_goals_are_statuses_within_budget(panda_scene):

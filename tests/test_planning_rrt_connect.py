@@ -129,8 +129,9 @@ def test_same_seed_gives_the_same_path(arm):
     model, spheres = arm
     ctx = PlanningContext(model, [_box("wall", [0.55, 0.25, 0.1], [0.1, 0.3, 0.3])], spheres=spheres)
     start, goal = np.array([0.0, 0.2, 0.0]), np.array([1.2, -0.3, 0.4])
-    paths = [rrt_connect(ctx, start, goal, FAST, np.random.default_rng(5)).path for _ in range(2)]
+    paths = [rrt_connect(ctx, start, goal, FAST, rng).path for rng in (np.random.default_rng(5), 5)]  # or its seed
     np.testing.assert_array_equal(paths[0], paths[1])
+    np.testing.assert_array_equal(shortcut(ctx, paths[0], 3), shortcut(ctx, paths[0], np.random.default_rng(3)))
 
 
 def test_infeasible_problem_times_out_within_the_budget(arm):

@@ -44,6 +44,7 @@ from prehensile.collision.exact import coal_geometry
 from prehensile.collision.sphere_checker import obstacle_arrays
 from prehensile.collision.spheres import SphereModel
 from prehensile.collision.world import Obstacle
+from prehensile.errors import PrehensileError
 from prehensile.kinematics.kernels import fk_into
 from prehensile.model.geometry import Box, Capsule, Cylinder, Geometry, Mesh, Sphere
 from prehensile.model.robot_model import RobotModel
@@ -385,7 +386,13 @@ def certify_path(ctx: PlanningContext, path: np.ndarray, resolution: float | Non
     free bubbles and sampled at ``resolution`` (m, default ``ctx.certify_resolution``) where
     a pair is closer than that (see the module doc). Attached objects are included.
     """
-    return ctx.certifier.certify(path, ctx.certify_resolution if resolution is None else float(resolution))
+    path = ctx.model.check_configuration(path, "path")
+    if path.ndim != 2 or len(path) < 1:
+        raise PrehensileError(f"certify_path: path must have shape (N >= 1, {ctx.model.dof}), got {path.shape}")
+    res = ctx.certify_resolution if resolution is None else float(resolution)
+    if not res > 0:
+        raise PrehensileError(f"certify_path: resolution must be positive (m), got {resolution}")
+    return ctx.certifier.certify(path, res)
 
 
 def certified_escape(ctx: PlanningContext, q: np.ndarray, toward: np.ndarray, rng: np.random.Generator,

@@ -397,6 +397,8 @@ class PlanningContext:
         if self.spheres.static_hit or not (self.model.within_limits(qa) and self.model.within_limits(qb)):
             return False
         res = self.resolution if resolution is None else float(resolution)
+        if not res > 0:
+            raise PrehensileError(f"check_motion: resolution must be positive (m), got {resolution}")
         return kernels.motion_free(qa, qb, res, self.spheres.data, self.scratch, self.motion_arrays(res),
                                    self.counters, kernels.NO_LIMIT, 2) == kernels.FREE
 

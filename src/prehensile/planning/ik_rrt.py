@@ -26,6 +26,7 @@ import numpy as np
 
 from prehensile.clock import clock
 from prehensile.collision.sphere_checker import SphereChecker
+from prehensile.errors import PrehensileError
 from prehensile.ik.complete import CompleteIKSettings, solve_ik_complete
 from prehensile.ik.hybrid import HybridIKSettings, ObjectRegion, solve_ik_hybrid, solve_regrasp_ik
 from prehensile.ik.jacobian import ChainSolver
@@ -34,6 +35,7 @@ from prehensile.kinematics.forward import forward_kinematics
 from prehensile.planning.context import PlanningContext
 from prehensile.planning.result import PlanResult, PlanStats, PlanStatus
 from prehensile.planning.rrt_connect import RRTConnectSearch, RRTConnectSettings
+from prehensile.planning.seeding import planner_rng
 from prehensile.spatial.transforms import invert
 
 # a goal sampler draws one goal configuration (dof,) or None, and what it reached (grasp
@@ -57,6 +59,10 @@ class IKRRTSettings:
     ik_budget_s: float = 0.02
     first_round_s: float = 0.01
     rrt: RRTConnectSettings = RRTConnectSettings()
+
+    def __post_init__(self) -> None:
+        if not (self.time_budget_s > 0 and self.ik_budget_s > 0 and self.first_round_s > 0):
+            raise PrehensileError(f"IKRRTSettings: the budgets must be positive (s), got {self}")
 
 
 class _Search:
@@ -121,6 +127,7 @@ def multi_eef_rrt(ctx: PlanningContext | dict[str, PlanningContext], q_start: np
     Args:
         ctx: one context for all, or one per end effector (each hand plans its own chain).
         samplers: end-effector name -> goal sampler for that hand.
+        rng: random source or seed (:func:`~prehensile.planning.seeding.planner_rng`: seed 0 if None).
 
     Returns:
         :class:`PlanResult` with ``end_effector`` the hand that grasps.
@@ -129,7 +136,7 @@ def multi_eef_rrt(ctx: PlanningContext | dict[str, PlanningContext], q_start: np
         context.warm_up(settings.rrt.certify or settings.rrt.escape)
     start = clock()
     deadline = start + settings.time_budget_s
-    rng = np.random.default_rng(rng)
+    rng = planner_rng(rng)
     contexts = ctx if isinstance(ctx, dict) else {name: ctx for name in samplers}
     for name in samplers:
         if not bool(contexts[name].is_valid(q_start)):

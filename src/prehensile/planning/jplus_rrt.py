@@ -39,6 +39,7 @@ from prehensile.ik.jacobian import ChainSolver, JacobianIKSettings
 from prehensile.planning.context import PlanningContext
 from prehensile.planning.finish import finish_path
 from prehensile.planning.result import PlanResult, PlanStats, PlanStatus
+from prehensile.planning.seeding import planner_rng
 from prehensile.spatial.transforms import invert
 
 
@@ -71,6 +72,14 @@ class JPlusRRTSettings:
     max_nodes: int = 100_000
     shortcut_iterations: int = 100
     certify: bool = True
+
+    def __post_init__(self) -> None:
+        positive = ("time_budget_s", "step", "max_step_position", "max_step_rotation", "position_tolerance",
+                    "rotation_tolerance", "rotation_weight", "max_goal_steps")
+        bad = [name for name in positive if not getattr(self, name) > 0]
+        if bad or not 0 <= self.goal_probability <= 1 or self.max_nodes < 2 or self.shortcut_iterations < 0:
+            raise PrehensileError(f"JPlusRRTSettings: need {', '.join(positive)} > 0, goal_probability in [0, 1], "
+                                  f"max_nodes >= 2 and shortcut_iterations >= 0; got {self}")
 
 
 class _Tree:
@@ -188,6 +197,7 @@ def jplus_rrt(ctx: PlanningContext, q_start: np.ndarray, target_poses: np.ndarra
         q_start: (dof,) start configuration.
         target_poses: (k, 4, 4) world tool poses, e.g. ``T_world_object @ grasps``.
         T_tip_tcp: (4, 4) tool frame on the chain's tip link.
+        rng: random source or seed (:func:`~prehensile.planning.seeding.planner_rng`: seed 0 if None).
 
     Returns:
         :class:`PlanResult`; ``goal_index`` is the grasp reached.
@@ -231,7 +241,7 @@ def _grow(ctx: PlanningContext, q_start: np.ndarray, goals, s: JPlusRRTSettings,
     """The J+-RRT loop (Alg. 13) over ``goals`` (:class:`_PoseGoals` or :class:`_GraspPairGoals`)."""
     ctx.warm_up(s.certify)
     start_time = clock()
-    rng = np.random.default_rng(rng)
+    rng = planner_rng(rng)
     q_start = np.array(ctx.model.check_configuration(q_start, "q_start"), dtype=float)
     counted = int(ctx.counters[0])
     if not ctx.is_valid(q_start):

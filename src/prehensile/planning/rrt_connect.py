@@ -51,6 +51,7 @@ from prehensile.planning.kernels import (
     BLOCKED, FREE, NO_LIMIT, assign, distance, motion_free, nearest, rng_state, uniform,
 )
 from prehensile.planning.result import PlanResult, PlanStats, PlanStatus
+from prehensile.planning.seeding import planner_rng
 from prehensile.planning.shortcut import prune, shortcut_checked, waypoint_marks
 
 RUNNING, FOUND, FULL = 0, 1, 2  # kernel results
@@ -370,16 +371,16 @@ class RRTConnectSearch:
         ctx: the planning context.
         q_start: (dof,) start configuration (rad or m).
         settings: :class:`RRTConnectSettings` (its time budget is not used: see :meth:`solve`).
-        rng: random source; ``np.random.default_rng(0)`` if None. The same seed and the same
-            calls give the same path.
+        rng: random source or seed (:func:`~prehensile.planning.seeding.planner_rng`: seed 0 if
+            None). The same seed and the same calls give the same path.
     """
 
     def __init__(self, ctx: PlanningContext, q_start: np.ndarray, settings: RRTConnectSettings = RRTConnectSettings(),
-                 rng: np.random.Generator | None = None) -> None:
+                 rng: np.random.Generator | int | None = None) -> None:
         ctx.warm_up(settings.certify or settings.escape)
         started = clock()
         self.ctx, self.settings = ctx, settings
-        self.rng = np.random.default_rng(0) if rng is None else rng
+        self.rng = planner_rng(rng)
         model = ctx.model
         self.start = model.check_configuration(q_start, "q_start")
         if self.start.shape != (model.dof,):
@@ -533,7 +534,7 @@ class RRTConnectSearch:
 
 def rrt_connect(ctx: PlanningContext, q_start: np.ndarray, q_goal: np.ndarray,
                 settings: RRTConnectSettings = RRTConnectSettings(),
-                rng: np.random.Generator | None = None) -> PlanResult:
+                rng: np.random.Generator | int | None = None) -> PlanResult:
     """Plan a collision-free path from q_start to q_goal (or to any goal of a set).
 
     Args:
@@ -541,7 +542,7 @@ def rrt_connect(ctx: PlanningContext, q_start: np.ndarray, q_goal: np.ndarray,
         q_start: (dof,) start configuration (rad or m).
         q_goal: (dof,) goal, or (k, dof) goal set; the joints not planned must equal the start's.
         settings: :class:`RRTConnectSettings`.
-        rng: random source; ``np.random.default_rng(0)`` if None. The same seed gives the same path.
+        rng: random source or seed (seed 0 if None). The same seed gives the same path.
 
     Returns:
         :class:`PlanResult`: on SUCCESS ``path`` (N, dof) runs from exactly q_start to exactly

@@ -27,6 +27,7 @@ from prehensile.clock import clock
 from prehensile.errors import PrehensileError
 from prehensile.planning.context import PlanningContext
 from prehensile.planning.kernels import FREE, NO_LIMIT, assign, distance, motion_free, rng_state, uniform
+from prehensile.planning.seeding import planner_rng
 
 
 @njit(cache=True, _nrt=False)
@@ -166,7 +167,7 @@ def simplify(path, n, marks, iterations, first, last, rng, idx, w, res, checker,
     return n
 
 
-def shortcut(ctx: PlanningContext, path: np.ndarray, rng: np.random.Generator, iterations: int = 100,
+def shortcut(ctx: PlanningContext, path: np.ndarray, rng: np.random.Generator | int | None, iterations: int = 100,
              time_budget_s: float = 0.05, resolution: float | None = None,
              stats: np.ndarray | None = None, pruned: tuple | None = None) -> np.ndarray:
     """A shorter path with the same ends: pruning, random shortcuts, pruning.
@@ -174,7 +175,8 @@ def shortcut(ctx: PlanningContext, path: np.ndarray, rng: np.random.Generator, i
     Args:
         ctx: the planning context (sphere model, metric).
         path: (N, dof) full configurations; the joints not planned must stay constant.
-        rng: random source (the same seed gives the same result).
+        rng: random source or seed (:func:`~prehensile.planning.seeding.planner_rng`; the same seed gives
+            the same result).
         iterations: random shortcut attempts.
         time_budget_s: stop the random attempts after this time (s).
         resolution: edge-check resolution (m); default ``ctx.resolution``.
@@ -195,7 +197,9 @@ def shortcut(ctx: PlanningContext, path: np.ndarray, rng: np.random.Generator, i
     if len(path) < 3:
         return path.copy()
     res = ctx.resolution if resolution is None else float(resolution)
-    return shortcut_checked(ctx, path, rng, int(iterations), time_budget_s, res, stats, pruned)
+    if not res > 0:
+        raise PrehensileError(f"shortcut: resolution must be positive (m), got {resolution}")
+    return shortcut_checked(ctx, path, planner_rng(rng), int(iterations), time_budget_s, res, stats, pruned)
 
 
 def shortcut_checked(ctx: PlanningContext, path: np.ndarray, rng: np.random.Generator, iterations: int,

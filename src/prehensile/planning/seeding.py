@@ -1,0 +1,12 @@
+"""The planners' random source: reproducible unless asked otherwise."""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def planner_rng(rng: np.random.Generator | int | None) -> np.random.Generator:
+    """``rng`` itself if it is a generator, else a new one seeded with it (seed 0 for None, so
+    that the same call gives the same result; pass ``np.random.default_rng()`` for fresh
+    randomness)."""
+    return rng if isinstance(rng, np.random.Generator) else np.random.default_rng(0 if rng is None else rng)
