@@ -248,7 +248,9 @@ def test_path_failing_certification_is_planned_again_on_the_cover(arm):
     start, goal = np.array([-1.2, 0.0, 0.0]), np.array([1.2, 0.0, 0.0])
     alone = PlanningContext(model, slot, spheres=thin)
     assert alone.refined({"l2"}) is None and alone.check_motion(start, goal)
-    assert rrt_connect(alone, start, goal, FAST).status is PlanStatus.CERTIFICATION_FAILED
+    failed = rrt_connect(alone, start, goal, FAST)
+    assert failed.status is PlanStatus.CERTIFICATION_FAILED
+    assert failed.info["refined"] == ()  # without a cover: at half the resolution each time, no link refined
     ctx = PlanningContext(model, slot, spheres=thin, cover=spheres)
     covered = ctx.refined({"l1", "l2", "l3"})
     assert covered.certifier is ctx.certifier and not covered.check_motion(start, goal)

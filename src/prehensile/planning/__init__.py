@@ -5,6 +5,7 @@ appendices B and C.2)."""
 from prehensile.planning.certify import CertifyReport, certify_path
 from prehensile.planning.context import AttachedObject, PlanningContext
 from prehensile.planning.cspace import ConfigurationSpace
+from prehensile.planning.elastic_band import ElasticBandSettings, elastic_band
 from prehensile.planning.ik_rrt import IKRRTSettings, grasp_sampler, ik_rrt, multi_eef_rrt
 from prehensile.planning.jplus_rrt import JPlusRRTSettings, jplus_rrt
 from prehensile.planning.result import PlanResult, PlanStats, PlanStatus
@@ -14,9 +15,10 @@ from prehensile.planning.shortcut import shortcut
 _TRAJECTORY = ("Trajectory", "model_limits", "time_parameterize")
 
 __all__ = [
-    "AttachedObject", "CertifyReport", "ConfigurationSpace", "IKRRTSettings", "JPlusRRTSettings", "PlanResult",
-    "PlanStats", "PlanStatus", "PlanningContext", "RRTConnectSearch", "RRTConnectSettings", "certify_path",
-    "grasp_sampler", "ik_rrt", "jplus_rrt", "multi_eef_rrt", "rrt_connect", "shortcut", *_TRAJECTORY,
+    "AttachedObject", "CertifyReport", "ConfigurationSpace", "ElasticBandSettings", "IKRRTSettings",
+    "JPlusRRTSettings", "PlanResult", "PlanStats", "PlanStatus", "PlanningContext", "RRTConnectSearch",
+    "RRTConnectSettings", "certify_path", "elastic_band", "grasp_sampler", "ik_rrt", "jplus_rrt", "multi_eef_rrt",
+    "rrt_connect", "shortcut", *_TRAJECTORY,
 ]
 
 

@@ -442,13 +442,15 @@ class RRTConnectSearch:
         """After a path failed certification: new trees, with covering balls on the links that
         collided (:meth:`PlanningContext.refined`; for the ``last`` search on every link with
         balls), else at half the resolution."""
-        self.refined |= set(report.colliding_links)
+        links = self.refined | set(report.colliding_links)
         if last:  # each failure may show one more link: do not run out of retries link by link
             balls = self.ctx.sphere_model
-            self.refined |= {balls.link_names[i] for i in np.unique(balls.sphere_link)}
-        finer = self.ctx.refined(self.refined)
-        self.context, self.res = (self.context, 0.5 * self.res) if finer is None or finer is self.context \
-            else (finer, self.res)
+            links |= {balls.link_names[i] for i in np.unique(balls.sphere_link)}
+        finer = self.ctx.refined(links)
+        if finer is None or finer is self.context:
+            self.res *= 0.5
+        else:
+            self.context, self.refined = finer, links
         self.trees = None
 
     def _run(self, deadline: float) -> tuple[np.ndarray | None, int]:
@@ -507,7 +509,7 @@ class RRTConnectSearch:
             totals["collision_checks"] += int(counters[CHECKS])
             if path is None:
                 status = PlanStatus.TIMEOUT if report is None else PlanStatus.CERTIFICATION_FAILED
-                return PlanResult(status, empty, PlanStats(**totals), info={"attempts": attempt + 1, "certify": report})
+                return PlanResult(status, empty, PlanStats(**totals), info=self._failure_info(attempt, report))
             if settings.shortcut and len(path) >= 3:
                 begun = clock()
                 path = shortcut_checked(self.context, path, self.rng, settings.shortcut_iterations,
@@ -529,7 +531,12 @@ class RRTConnectSearch:
                 break
         totals["collision_checks"] += int(checks[0])
         return PlanResult(PlanStatus.CERTIFICATION_FAILED, empty, PlanStats(**totals),
-                          info={"attempts": attempt + 1, "certify": report})
+                          info=self._failure_info(attempt, report))
+
+    def _failure_info(self, attempt: int, report: CertifyReport | None) -> dict:
+        """``info`` of a result without a path: attempts, the last certification report (or
+        None), the links planned on covering balls."""
+        return {"attempts": attempt + 1, "certify": report, "refined": tuple(sorted(self.refined))}
 
 
 def rrt_connect(ctx: PlanningContext, q_start: np.ndarray, q_goal: np.ndarray,
