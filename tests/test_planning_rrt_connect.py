@@ -507,3 +507,18 @@ def test_a_robot_standing_on_a_table_plans():
         else:
             assert result.status is PlanStatus.INVALID_START
             assert ctx.why_invalid(ready) == "panda_link0 collides with table (5.0 mm deep)"
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    ({"obstacles": [Box((0.1, 0.1, 0.1))]}, r"obstacles\[0\]: expected an Obstacle"),
+    ({"obstacles": [_box("flat", [0.5, 0, 0], [-0.3, 0.3, 0.3])]}, r"obstacles\[0\] 'flat'.*positive size"),
+    ({"obstacles": [Obstacle("ball", Sphere(0.1), np.diag([2.0, 2.0, 2.0, 1.0]))]}, "not a rotation matrix"),
+    ({"T_world_base": np.full((4, 4), np.nan)}, "T_world_base: contains NaN"),
+    ({"T_world_base": np.eye(3)}, r"T_world_base: expected shape \(\.\.\., 4, 4\)"),
+    ({"acm": np.zeros((3, 3), dtype=bool)}, r"acm must be \(\d+, \d+\)"),
+])
+def test_bad_context_inputs_are_errors(arm, kwargs, message):
+    model, spheres = arm
+    kwargs = {"obstacles": [], **kwargs}
+    with pytest.raises(PrehensileError, match=message):
+        PlanningContext(model, kwargs.pop("obstacles"), spheres=spheres, **kwargs)

@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from typing import NamedTuple, Sequence
 
 import numpy as np
 
-from prehensile.model.geometry import Shape
+from prehensile.errors import PrehensileError
+from prehensile.model.geometry import Box, Capsule, Cylinder, Mesh, Shape, Sphere
+from prehensile.spatial.transforms import check_pose
 
 
 class Obstacle(NamedTuple):
@@ -16,3 +18,35 @@ class Obstacle(NamedTuple):
     name: str
     shape: Shape
     T_world_shape: np.ndarray
+
+
+def check_obstacles(obstacles: Sequence[Obstacle], what: str = "obstacles") -> list[Obstacle]:
+    """The obstacles as a list, each checked: an :class:`Obstacle` with a rigid pose and a shape of
+    positive size (a zero-length capsule is a ball). Raises PrehensileError naming the first bad one."""
+    if isinstance(obstacles, Obstacle):
+        raise PrehensileError(f"{what}: expected a list of Obstacle, got one Obstacle")
+    out = list(obstacles)
+    for i, obstacle in enumerate(out):
+        if not isinstance(obstacle, Obstacle):
+            raise PrehensileError(f"{what}[{i}]: expected an Obstacle(name, shape, T_world_shape), "
+                                  f"got {type(obstacle).__name__}")
+        where = f"{what}[{i}] '{obstacle.name}'"
+        check_pose(obstacle.T_world_shape, f"{where}: T_world_shape")
+        if np.shape(obstacle.T_world_shape) != (4, 4):
+            raise PrehensileError(f"{where}: T_world_shape must be (4, 4), got {np.shape(obstacle.T_world_shape)}")
+        if not _positive_size(obstacle.shape):
+            raise PrehensileError(f"{where}: {obstacle.shape} needs a positive size (m); valid shapes: Box(size (3,)), "
+                                  "Sphere(radius), Cylinder(radius, length), Capsule(radius, length >= 0), Mesh")
+    return out
+
+
+def _positive_size(shape: Shape) -> bool:
+    if isinstance(shape, Box):
+        return np.shape(shape.size) == (3,) and bool(np.all(np.asarray(shape.size, dtype=float) > 0))
+    if isinstance(shape, Sphere):
+        return shape.radius > 0
+    if isinstance(shape, Cylinder):
+        return shape.radius > 0 and shape.length > 0
+    if isinstance(shape, Capsule):
+        return shape.radius > 0 and shape.length >= 0
+    return isinstance(shape, Mesh) and bool(np.all(np.asarray(shape.scale, dtype=float) > 0))

@@ -30,11 +30,12 @@ from prehensile.collision.acm import allowed_collision_matrix, rigid_bodies
 from prehensile.collision.sphere_checker import SphereChecker, frames_and_groups
 from prehensile.collision.sphere_fit import cover_geometries
 from prehensile.collision.spheres import SphereModel, generate_sphere_model, replace_link_balls
-from prehensile.collision.world import Obstacle
+from prehensile.collision.world import Obstacle, check_obstacles
 from prehensile.errors import PrehensileError
 from prehensile.model.geometry import Geometry, Shape
 from prehensile.model.robot_model import FIXED, PRISMATIC, REVOLUTE, RobotModel
 from prehensile.planning.cspace import ConfigurationSpace
+from prehensile.spatial.transforms import check_pose
 
 
 @dataclass(frozen=True, eq=False)
@@ -243,12 +244,20 @@ class PlanningContext:
             raise PrehensileError(f"resolutions must be positive, got {resolution}, {certify_resolution}")
         if cover is not None and not cover.covering:
             raise PrehensileError("PlanningContext: cover must be a covering sphere model (generated or padded)")
+        if isinstance(attached, AttachedObject) or not all(isinstance(a, AttachedObject) for a in attached):
+            raise PrehensileError("PlanningContext: attached must be a list of AttachedObject")
+        if acm is not None and np.shape(acm) != (model.n_links, model.n_links):
+            raise PrehensileError(f"PlanningContext: acm must be ({model.n_links}, {model.n_links}) for the links of "
+                                  f"'{model.name}', got {np.shape(acm)}")
         self.model = model
-        self.obstacles = list(obstacles)
+        self.obstacles = check_obstacles(obstacles)
         self.attached = tuple(attached)
         self.resolution = float(resolution)
         self.certify_resolution = float(certify_resolution)
-        self.T_world_base = np.eye(4) if T_world_base is None else np.ascontiguousarray(T_world_base, dtype=float)
+        self.T_world_base = np.eye(4) if T_world_base is None else np.ascontiguousarray(
+            check_pose(T_world_base, "PlanningContext: T_world_base"))
+        if self.T_world_base.shape != (4, 4):
+            raise PrehensileError(f"PlanningContext: T_world_base must be (4, 4), got {self.T_world_base.shape}")
         base_spheres = generate_sphere_model(model) if spheres is None else spheres
         base_acm = allowed_collision_matrix(model) if acm is None else np.asarray(acm, dtype=bool)
         self.collision_model, self.sphere_model, self.acm = attach_objects(model, base_spheres, base_acm, self.attached)
