@@ -138,8 +138,9 @@ def multi_eef_rrt(ctx: PlanningContext | dict[str, PlanningContext], q_start: np
     deadline = start + settings.time_budget_s
     rng = planner_rng(rng)
     contexts = ctx if isinstance(ctx, dict) else {name: ctx for name in samplers}
-    for name in samplers:
-        if not bool(contexts[name].is_valid(q_start)):
+    for name in samplers:  # a start only the balls reject is left to the search's certified escape
+        context = contexts[name]
+        if not (context.is_valid(q_start) or context.model.within_limits(q_start) and context.exact.is_free(q_start)):
             return PlanResult(PlanStatus.INVALID_START, np.zeros((0, len(q_start))), PlanStats(), end_effector=name)
     searches = {name: _Search(contexts[name], q_start, sampler, settings, rng) for name, sampler in samplers.items()}
     while clock() < deadline:
