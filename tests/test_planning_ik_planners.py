@@ -79,6 +79,14 @@ def test_ik_rrt_starts_where_only_the_balls_collide(panda_scene):
     assert_valid_path(ctx, result.path, q)
 
 
+def test_multi_eef_rrt_names_missing_samplers_and_contexts(panda_scene):
+    ctx, solver, q0, goals = panda_scene
+    with pytest.raises(PrehensileError, match="no goal samplers"):
+        multi_eef_rrt(ctx, q0, {})
+    with pytest.raises(PrehensileError, match="no context for right; contexts: left"):
+        multi_eef_rrt({"left": ctx}, q0, {"right": grasp_sampler(ctx, solver, goals, q0)})
+
+
 def test_settings_are_validated():
     with pytest.raises(PrehensileError, match="IKRRTSettings: the budgets must be positive"):
         IKRRTSettings(time_budget_s=-1.0)

@@ -162,6 +162,8 @@ def test_invalid_start_and_goal(arm):
     assert re.fullmatch(r"joint \w+ = 2\.9 outside its limits \[-?[\d.]+, [\d.]+\]",
                         ctx.why_invalid(np.array([0.0, 2.9, 0.0])))
     assert ctx.why_invalid(free) == ""
+    with pytest.raises(PrehensileError, match=r"why_invalid: expected one configuration \(3,\)"):
+        ctx.why_invalid(np.zeros((2, 3)))
     assert ctx.spheres.ball_contacts(free) == [] and ("l2", "world") in ctx.spheres.ball_contacts(np.zeros(3))
     with pytest.raises(Exception, match="q_goal"):
         rrt_connect(ctx, free, np.zeros(4), settings)

@@ -374,6 +374,8 @@ class PlanningContext:
         what it touches, depth), else the links whose conservative balls collide although the
         geometry is free; "" if q is within the limits and the balls are free."""
         q = self.model.check_configuration(q)
+        if q.shape != (self.model.dof,):
+            raise PrehensileError(f"why_invalid: expected one configuration ({self.model.dof},), got {q.shape}")
         names, lower, upper = self.model.joint_names, self.model.lower, self.model.upper
         outside = np.flatnonzero(~((q >= lower - 1e-9) & (q <= upper + 1e-9)))
         if len(outside):

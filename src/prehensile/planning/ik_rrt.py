@@ -132,6 +132,11 @@ def multi_eef_rrt(ctx: PlanningContext | dict[str, PlanningContext], q_start: np
     Returns:
         :class:`PlanResult` with ``end_effector`` the hand that grasps.
     """
+    if not samplers:
+        raise PrehensileError("multi_eef_rrt: no goal samplers given (samplers: end-effector name -> sampler)")
+    if isinstance(ctx, dict) and set(samplers) - set(ctx):
+        raise PrehensileError(f"multi_eef_rrt: no context for {', '.join(sorted(set(samplers) - set(ctx)))}; "
+                              f"contexts: {', '.join(sorted(ctx))}")
     for context in (ctx.values() if isinstance(ctx, dict) else (ctx,)):
         context.warm_up(settings.rrt.certify or settings.rrt.escape)
     start = clock()
