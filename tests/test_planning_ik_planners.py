@@ -68,15 +68,16 @@ def test_ik_rrt_reaches_a_grasp(panda_scene):
     assert np.array_equal(again.path, result.path)
 
 
-def test_ik_rrt_starts_where_only_the_balls_collide(panda_scene):
+def test_ik_planners_start_where_only_the_balls_collide(panda_scene):
     """As rrt_connect: a start the conservative balls reject but the meshes do not leaves along
     a certified escape motion."""
     ctx, solver, _, goals = panda_scene
     q = ctx.model.neutral_configuration()  # the balls of link 5 and a finger overlap
     assert not ctx.is_valid(q) and ctx.exact.is_free(q)
-    result = ik_rrt(ctx, q, grasp_sampler(ctx, solver, goals, q), rng=0)
-    assert result.success
-    assert_valid_path(ctx, result.path, q)
+    for result in (ik_rrt(ctx, q, grasp_sampler(ctx, solver, goals, q), rng=0), jplus_rrt(ctx, q, goals, rng=0)):
+        assert result.success
+        assert_valid_path(ctx, result.path, q)
+    assert jplus_rrt(ctx, q, goals, settings=JPlusRRTSettings(escape=False)).status is PlanStatus.INVALID_START
 
 
 def test_multi_eef_rrt_names_missing_samplers_and_contexts(panda_scene):

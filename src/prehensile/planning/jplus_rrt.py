@@ -36,6 +36,7 @@ from prehensile.errors import PrehensileError
 from prehensile.ik import kernels as ik_kernels
 from prehensile.ik.hand_pair import HandPair
 from prehensile.ik.jacobian import ChainSolver, JacobianIKSettings
+from prehensile.planning.certify import certified_escape
 from prehensile.planning.context import PlanningContext
 from prehensile.planning.finish import finish_path
 from prehensile.planning.result import PlanResult, PlanStats, PlanStatus
@@ -58,6 +59,10 @@ class JPlusRRTSettings:
         max_nodes: tree capacity.
         shortcut_iterations: random shortcuts of the found path.
         certify: certify the path with the exact geometry before returning it.
+        escape: a start within the limits that only the conservative balls reject leaves
+            along a short straight motion certified on the exact geometry (as in
+            :class:`~prehensile.planning.rrt_connect.RRTConnectSettings`); the start itself
+            is then not extended.
     """
 
     time_budget_s: float = 5.0
@@ -72,6 +77,7 @@ class JPlusRRTSettings:
     max_nodes: int = 100_000
     shortcut_iterations: int = 100
     certify: bool = True
+    escape: bool = True
 
     def __post_init__(self) -> None:
         positive = ("time_budget_s", "step", "max_step_position", "max_step_rotation", "position_tolerance",
@@ -91,6 +97,7 @@ class _Tree:
         self.tools = np.empty((capacity,) + tools.shape)
         self.marked: dict[int, list[int]] = {}
         self.count = 0
+        self.first = 0  # nodes before it are not extended (a start left along its escape edge)
         self.add(q_start, -1, tools)
 
     def add(self, q: np.ndarray, parent: int, tools: np.ndarray) -> int:
@@ -239,14 +246,20 @@ def regrasp_jplus_rrt(ctx: PlanningContext, q_start: np.ndarray, arms: Sequence[
 def _grow(ctx: PlanningContext, q_start: np.ndarray, goals, s: JPlusRRTSettings,
           rng: np.random.Generator | int | None) -> PlanResult:
     """The J+-RRT loop (Alg. 13) over ``goals`` (:class:`_PoseGoals` or :class:`_GraspPairGoals`)."""
-    ctx.warm_up(s.certify)
+    ctx.warm_up(s.certify or s.escape)
     start_time = clock()
     rng = planner_rng(rng)
     q_start = np.array(ctx.model.check_configuration(q_start, "q_start"), dtype=float)
     counted = int(ctx.counters[0])
-    if not ctx.is_valid(q_start):
+    escape = None
+    if not ctx.is_valid(q_start) and s.escape and ctx.model.within_limits(q_start):
+        escape = certified_escape(ctx, q_start, q_start, rng, 0.5 * ctx.resolution)  # random directions
+    if not ctx.is_valid(q_start) and escape is None:
         return _result(PlanStatus.INVALID_START, ctx, 0, 0, counted, start_time)
     tree = _Tree(q_start, goals.tools(q_start), s.max_nodes)
+    if escape is not None:
+        tree.add(escape, 0, goals.tools(escape))
+        tree.first = 1
     iterations = 0
     try:
         while clock() - start_time < s.time_budget_s:
@@ -257,6 +270,7 @@ def _grow(ctx: PlanningContext, q_start: np.ndarray, goals, s: JPlusRRTSettings,
             g = int(rng.integers(goals.count))
             d = goals.distance(tree.tools[:tree.count], g)
             d[tree.marked.get(g, [])] = np.inf
+            d[:tree.first] = np.inf
             node = int(np.argmin(d))
             if not np.isfinite(d[node]):
                 continue
@@ -273,7 +287,7 @@ def _extend_randomly(ctx: PlanningContext, tree: _Tree, goals, step: float, rng:
     """One RRT step from the node nearest to a uniform sample (workspace-weighted metric)."""
     idx, w = ctx.space.indices, ctx.space.weights
     sample = rng.uniform(ctx.space.lower, ctx.space.upper)
-    near = int(np.argmin(np.abs(tree.q[:tree.count][:, idx] - sample) @ w))
+    near = tree.first + int(np.argmin(np.abs(tree.q[tree.first:tree.count][:, idx] - sample) @ w))
     delta = sample - tree.q[near, idx]
     length = float(w @ np.abs(delta))
     if length == 0.0:
