@@ -82,8 +82,8 @@ class JPlusRRTSettings:
     def __post_init__(self) -> None:
         positive = ("time_budget_s", "step", "max_step_position", "max_step_rotation", "position_tolerance",
                     "rotation_tolerance", "rotation_weight", "max_goal_steps")
-        bad = [name for name in positive if not getattr(self, name) > 0]
-        if bad or not 0 <= self.goal_probability <= 1 or self.max_nodes < 2 or self.shortcut_iterations < 0:
+        if not all(getattr(self, name) > 0 for name in positive) or not 0 <= self.goal_probability <= 1 \
+                or self.max_nodes < 2 or self.shortcut_iterations < 0:
             raise PrehensileError(f"JPlusRRTSettings: need {', '.join(positive)} > 0, goal_probability in [0, 1], "
                                   f"max_nodes >= 2 and shortcut_iterations >= 0; got {self}")
 
@@ -251,10 +251,10 @@ def _grow(ctx: PlanningContext, q_start: np.ndarray, goals, s: JPlusRRTSettings,
     rng = planner_rng(rng)
     q_start = np.array(ctx.model.check_configuration(q_start, "q_start"), dtype=float)
     counted = int(ctx.counters[0])
-    escape = None
-    if not ctx.is_valid(q_start) and s.escape and ctx.model.within_limits(q_start):
+    valid, escape = bool(ctx.is_valid(q_start)), None
+    if not valid and s.escape and ctx.model.within_limits(q_start):
         escape = certified_escape(ctx, q_start, q_start, rng, 0.5 * ctx.resolution)  # random directions
-    if not ctx.is_valid(q_start) and escape is None:
+    if not valid and escape is None:
         return _result(PlanStatus.INVALID_START, ctx, 0, 0, counted, start_time)
     tree = _Tree(q_start, goals.tools(q_start), s.max_nodes)
     if escape is not None:
