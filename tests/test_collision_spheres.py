@@ -3,6 +3,7 @@ sphere checker's clearance is the exact ball-to-obstacle distance."""
 
 from __future__ import annotations
 
+import logging
 from pathlib import Path
 
 import numpy as np
@@ -117,6 +118,7 @@ def test_generated_spheres_cover_primitive_robot(tmp_path, monkeypatch):
 
 
 def test_max_radius_is_a_target_and_the_links_above_it_are_logged(caplog):
+    caplog.set_level(logging.INFO, logger="prehensile.collision.spheres")
     model = _primitive_robot()
     spheres = generate_sphere_model(model, n_spheres=2, max_radius=0.07, cache=False)
     column = spheres.link_spheres("column")[1]
