@@ -169,13 +169,31 @@ def test_invalid_start_and_goal(arm):
         rrt_connect(ctx, free, np.zeros(4), settings)
 
 
-def test_why_invalid_names_the_balls_that_collide_where_the_geometry_is_free():
+def test_pairs_the_planned_joints_do_not_move_are_tested_exactly_once():
+    """NAO's biceps' balls reach into the torso's (the meshes are 10 mm apart). Planning the left
+    arm, the right arm and the torso are one static pair, tested on the meshes; the left arm's
+    pairs stay on the balls, and why_invalid names them."""
     nao = robots.load("nao")
-    ctx = PlanningContext(nao, [], joints="left_arm")  # the right arm stays put, its biceps' balls in the torso's
+    ctx = PlanningContext(nao, [], joints="left_arm")
+    static = {frozenset((nao.link_names[i], nao.link_names[j])) for i, j in ctx.static_pairs}
+    assert frozenset(("torso", "RBicep")) in static and frozenset(("torso", "LBicep")) not in static
     q = nao.neutral_configuration()
-    assert ctx.exact.is_free(q) and not ctx.is_valid(q)
-    assert ("torso", "RBicep") in ctx.spheres.ball_contacts(q)
-    assert ctx.why_invalid(q).startswith("free on the exact geometry") and "torso with RBicep" in ctx.why_invalid(q)
+    assert ctx.exact.is_free(q) and ctx.static_free(q) and not ctx.is_valid(q)
+    assert ctx.spheres.ball_contacts(q) == [("torso", "LBicep")]
+    assert ctx.why_invalid(q).startswith("free on the exact geometry") and "torso with LBicep" in ctx.why_invalid(q)
+    qs = np.repeat(q[None], 200, axis=0)
+    qs[:, ctx.space.indices] = np.random.default_rng(0).uniform(ctx.space.lower, ctx.space.upper, (200, ctx.space.n))
+    valid = qs[ctx.is_valid(qs)]
+    assert len(valid) > 50 and ctx.exact.is_free(valid).all()
+    _check_result(ctx, rrt_connect(ctx, valid[0], valid[1], FAST, np.random.default_rng(0)), valid[0], valid[1])
+    hugging = q.copy()  # the right arm, not planned, pressed into the torso: every motion of the left one is invalid
+    hugging[nao.joint_index("RShoulderRoll")] = nao.upper[nao.joint_index("RShoulderRoll")]
+    hugging[nao.joint_index("RElbowRoll")] = nao.upper[nao.joint_index("RElbowRoll")]
+    assert not ctx.exact.is_free(hugging) and not ctx.static_free(hugging) and not ctx.is_valid(hugging)
+    assert rrt_connect(ctx, hugging, hugging, FAST).status is PlanStatus.INVALID_START
+    assert "torso collides with RBicep" in ctx.why_invalid(hugging)
+    with pytest.raises(PrehensileError, match="differ in joints the context does not plan"):
+        ctx.check_motion(q, hugging)
 
 
 def test_goal_set_reports_the_goal_reached(arm):

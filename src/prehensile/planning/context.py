@@ -264,11 +264,20 @@ class PlanningContext:
         centers, radii = self.sphere_model.link_bounds()
         self.space = ConfigurationSpace(self.collision_model, joints, q_ref, centers=centers, radii=radii)
         self._exact_checkers: dict = {}  # exact checker and certifier, shared with refined contexts
+        self.static_pairs = self._static_pairs()
+        """(K, 2) link pairs with balls that the planned joints do not move relative to each other
+        (a planned arm and the torso's other arm): left out of the ball checks, tested on the
+        exact geometry once per value of the joints not planned (:meth:`static_free`)."""
+        self._static_free: dict[bytes, bool] = {}
+        kernel_acm = self.acm.copy()
+        kernel_acm[self.static_pairs[:, 0], self.static_pairs[:, 1]] = True
+        kernel_acm[self.static_pairs[:, 1], self.static_pairs[:, 0]] = True
         self.spheres = SphereChecker(self.collision_model, self.obstacles, self.T_world_base, self.sphere_model,
-                                     self.acm)
+                                     kernel_acm)
         if self.spheres.static_hit and not self._root_contacts():  # only the base's balls meet the world
             self.spheres = SphereChecker(self.collision_model, self.obstacles, self.T_world_base, self.sphere_model,
-                                         self.acm, static_hit=False)
+                                         kernel_acm, static_hit=False)
+        self.static_free(self.space.q_ref)  # tested now, outside the planners' clocks
         self.motion = self._motion_tables()
         """(Wball (dof, S), Wgroup (G, D), qgroup (G, D), pcut (P, 2), scales, queue (Q, 2),
         q (dof,), dq (dof + 1,), below (G, D + 1), first column 0) for
@@ -288,6 +297,40 @@ class PlanningContext:
         """Balls covering the geometry, objects included (for the certifier's bounds), or None."""
         self._refine_args = (joints, q_ref, acm)
         self._refined: dict[frozenset, PlanningContext] = {}
+
+    def _static_pairs(self) -> np.ndarray:
+        """(K, 2) link pairs (ACM-allowed ones left out) with the same planned joints on their
+        paths to the root: nothing planned lies between them."""
+        model, planned = self.collision_model, set(self.space.indices.tolist())
+        moved_by = [frozenset(k for k in model.path_to_root(link) if model.joint_q_index[k] in planned)
+                    for link in range(model.n_links)]
+        with_balls = np.unique(self.sphere_model.sphere_link)
+        pairs = [(i, j) for a, i in enumerate(with_balls) for j in with_balls[a + 1:]
+                 if not self.acm[i, j] and moved_by[i] == moved_by[j]]
+        return np.array(pairs, dtype=np.int64).reshape(-1, 2)
+
+    def static_free(self, q: np.ndarray) -> np.ndarray:
+        """(*batch,) bool for q (*batch, dof): no pair of :attr:`static_pairs` touches on the exact
+        geometry (remembered per value of the joints not planned)."""
+        q = self.model.check_configuration(q)
+        flat = q.reshape(-1, self.model.dof)
+        return np.array([self._static_free_at(row) for row in flat], dtype=bool).reshape(q.shape[:-1])
+
+    def _static_free_at(self, q: np.ndarray) -> bool:
+        """:meth:`static_free` of one checked configuration q (dof,)."""
+        if not len(self.static_pairs):
+            return True
+        key = q[self.space.fixed].tobytes()
+        free = self._static_free.get(key)
+        if free is None:
+            free = self._static_free[key] = not self._static_contacts(q)
+        return free
+
+    def _static_contacts(self, q: np.ndarray) -> list[tuple[str, str, float]]:
+        """Contacts of the :attr:`static_pairs` at q (dof,) on the exact geometry."""
+        names = self.collision_model.link_names
+        static = {frozenset((names[i], names[j])) for i, j in self.static_pairs}
+        return [c for c in self.exact.collisions(q) if frozenset(c[:2]) in static]
 
     def _root_contacts(self) -> list[tuple[str, str, float]]:
         """Contacts (link, obstacle, depth m) of the robot's root body with the world on the
@@ -364,9 +407,10 @@ class PlanningContext:
         return self._exact_checkers["exact"]
 
     def is_valid(self, q: np.ndarray) -> np.ndarray:
-        """(*batch,) bool: q (*batch, dof) within the joint limits and free (sphere model)."""
+        """(*batch,) bool: q (*batch, dof) within the joint limits and free (sphere model; the
+        :attr:`static_pairs` on the exact geometry)."""
         q = self.model.check_configuration(q)
-        return self.model.within_limits(q) & self.spheres.is_free(q)
+        return self.model.within_limits(q) & self.spheres.is_free(q) & self.static_free(q)
 
     def why_invalid(self, q: np.ndarray) -> str:
         """Why a planner may reject q (dof,) as a path end (INVALID_START / INVALID_GOAL), in
@@ -405,7 +449,10 @@ class PlanningContext:
         qb = self.model.check_configuration(qb, "qb")
         if qa.shape != (self.model.dof,) or qb.shape != (self.model.dof,):
             raise PrehensileError(f"check_motion: expected two configurations ({self.model.dof},)")
-        if self.spheres.static_hit or not (self.model.within_limits(qa) and self.model.within_limits(qb)):
+        if np.any(np.abs(qa[self.space.fixed] - qb[self.space.fixed]) > 1e-9):
+            raise PrehensileError("check_motion: qa and qb differ in joints the context does not plan")
+        if self.spheres.static_hit or not (self.model.within_limits(qa) and self.model.within_limits(qb)
+                                           and self._static_free_at(qa)):
             return False
         res = self.resolution if resolution is None else float(resolution)
         if not res > 0:

@@ -344,7 +344,7 @@ def _endpoints(ctx: PlanningContext, qs: np.ndarray, toward: np.ndarray, setting
     """Per configuration of qs (k, dof): its tree nodes [(q, -1, flags)] plus, if it needs one,
     its certified escape node [(escape, 0, _CHECKED)] (moving toward ``toward`` (k, dof)); None
     if it is unusable (outside the limits, or colliding for the balls without an escape)."""
-    inside = ctx.model.within_limits(qs)
+    inside = ctx.model.within_limits(qs) & ctx.static_free(qs)  # no escape from a static contact
     free, near = ctx.spheres.screen(qs, 0.5 * ctx.resolution)
     valid, tight = inside & free, inside & near
     out: list[list | None] = []
