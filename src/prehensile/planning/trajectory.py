@@ -85,7 +85,9 @@ class Trajectory:
 
         Positions and velocities come from the cubic Hermite interpolant of (q, qd) between
         samples (so a sample pair on one straight segment interpolates on that segment),
-        accelerations are interpolated linearly.
+        accelerations are interpolated linearly. The samples meet the limits; between them
+        the interpolant's velocity can exceed them by a fraction of a percent (0.5 % seen):
+        a controller that must not should use the samples or scale the limits down.
 
         Returns:
             (q, qd, qdd), each (*batch, n).
