@@ -233,6 +233,10 @@ class PlanningContext:
             attached objects as links; variables are the same as ``model``'s).
         spheres: :class:`SphereChecker` (robot balls, objects included, vs world and self).
         collision_model, sphere_model, acm: the model, balls and ACM with the objects attached.
+        static_pairs: link pairs the planned joints do not move relative to each other; they,
+            and the root body against the world, are decided on the exact geometry (the balls
+            only bound them), so that a robot on a table or an arm beside a torso whose balls
+            overlap can plan.
     """
 
     def __init__(self, model: RobotModel, obstacles: Sequence[Obstacle], joints: Sequence[str] | str | None = None,
