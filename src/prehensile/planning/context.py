@@ -435,9 +435,9 @@ class PlanningContext:
         if deepest:
             return "; ".join(f"{link} collides with {other} ({1e3 * depth:.1f} mm deep)"
                              for (link, other), depth in deepest.items())
-        balls = self.spheres.ball_contacts(q)
-        if balls or self.spheres.static_hit:
-            where = ", ".join(f"{a} with {b}" for a, b in balls) or "the root body with the world"
+        balls = self.spheres.ball_contacts(q)  # the root body's contacts were decided exactly: reported above
+        if balls:
+            where = ", ".join(f"{a} with {b}" for a, b in balls)
             return (f"free on the exact geometry, but the sphere model's conservative balls collide ({where}); "
                     "a planner starts from such an end only along a certified escape motion, if it finds one "
                     "(RRTConnectSettings.escape)")
