@@ -104,6 +104,7 @@ class _Rejecting:
 
     def __init__(self, ctx):
         self.model, self.space, self.exact, self.is_valid = ctx.model, ctx.space, ctx.exact, ctx.is_valid
+        self.spheres, self.sphere_model = ctx.spheres, ctx.sphere_model
 
     def check_motion(self, qa, qb) -> bool:
         return False

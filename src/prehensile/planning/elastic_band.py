@@ -129,12 +129,21 @@ def external_force(ctx, q: np.ndarray, d_min: float, damping: float = 1e-2) -> n
     return force
 
 
+def _near_obstacles(ctx, path: np.ndarray, d_min: float) -> np.ndarray:
+    """(N,) bool: the waypoints (N, dof) where some link may be closer than d_min (m) to an
+    obstacle. Balls that cover the geometry answer for all of them in one call (a waypoint whose
+    balls keep d_min feels no push); otherwise every waypoint is a candidate."""
+    if not ctx.sphere_model.covering:
+        return np.ones(len(path), dtype=bool)
+    return ctx.spheres.clearance(path, d_min, self_pairs=False) < d_min
+
+
 def elastic_band(ctx, path: np.ndarray, settings: ElasticBandSettings = ElasticBandSettings()) -> np.ndarray:
     """Smooth a valid path and push it away from obstacles with an elastic band.
 
     Args:
         ctx: a :class:`~prehensile.planning.context.PlanningContext` (model, configuration
-            space, exact checker, validity and motion checks).
+            space, exact and sphere checkers, validity and motion checks).
         path: (N, dof) full configurations (rad or m) joined by straight, valid edges.
         settings: :class:`ElasticBandSettings`.
 
@@ -156,9 +165,10 @@ def elastic_band(ctx, path: np.ndarray, settings: ElasticBandSettings = ElasticB
     band = space.active(path)
     for iteration in range(settings.max_iterations):
         largest, accepted = 0.0, 0
+        pushed = _near_obstacles(ctx, path, settings.d_min) if settings.k_ext > 0 else np.zeros(len(path), bool)
         for i in range(1, len(band) - 1):
             step = settings.k_int * internal_force(band[i - 1], band[i], band[i + 1])
-            if settings.k_ext > 0:
+            if pushed[i]:
                 step += settings.k_ext * external_force(ctx, path[i], settings.d_min, settings.damping)
             size = float(np.linalg.norm(step))
             largest = max(largest, size)
