@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import importlib
+
 import numpy as np
 import pytest
 
@@ -10,6 +12,8 @@ from prehensile.errors import PrehensileError
 from prehensile.model.geometry import Box
 from prehensile.planning.elastic_band import ElasticBandSettings, elastic_band, external_force
 from prehensile.spatial import make_pose
+
+elastic_band_module = importlib.import_module("prehensile.planning.elastic_band")  # the package exports the function
 
 # the hand sweeps over a box (joint 1 from -1 to 1); at the middle its fingers are ~1 cm above it
 Q_START = np.array([-1.0, 0.3, 0.0, -1.8, 0.0, 2.1, 0.8, 0.02])
@@ -116,6 +120,19 @@ def test_rejected_updates_leave_the_path_unchanged(panda):
     band = elastic_band(ctx, path, ElasticBandSettings(max_spacing=0.2))
     t = np.linspace(0.0, 1.0, len(band))[:, None]
     assert np.allclose(band, (1 - t) * Q_START + t * Q_GOAL)
+
+
+def test_the_ball_prefilter_changes_nothing(panda, monkeypatch):
+    """Waypoints whose covering balls keep d_min from the world skip the exact distance queries:
+    the band is the same as with every waypoint queried."""
+    ctx = _context(panda, [BOX])
+    path = np.stack([Q_START, Q_GOAL])
+    settings = ElasticBandSettings(max_spacing=0.2, max_iterations=20)
+    near = elastic_band_module._near_obstacles(ctx, elastic_band(ctx, path, settings), settings.d_min)
+    assert near.any() and not near.all()
+    filtered = elastic_band(ctx, path, settings)
+    monkeypatch.setattr(elastic_band_module, "_near_obstacles", lambda ctx, path, d_min: np.ones(len(path), bool))
+    np.testing.assert_array_equal(elastic_band(ctx, path, settings), filtered)
 
 
 def test_bad_settings_and_path():
