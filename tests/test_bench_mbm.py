@@ -94,6 +94,57 @@ def test_bench_mbm_with_ompl(problem_dir, tmp_path):
         assert run["ompl"]["solved"] == (run["ompl"]["status"] == "success") and run["ompl"]["certify_s"] is None
 
 
+ARMAR_PROBLEMS = [  # RightArm start and goal (rad) under a shelf board above a table, beside a post
+    ((0.208, 0.625, 0.904), [-0.957, 0.992, 1.119, 0.381, -0.33, -0.274, 0.562],
+     [0.582, 1.094, -1.298, 0.447, 1.271, -0.166, -0.054]),
+    ((0.26, 0.668, 0.938), [0.602, 1.62, -0.042, 0.446, 0.83, 0.25, 0.739],
+     [0.31, 1.568, -0.976, -0.077, 1.531, -0.167, -0.467]),
+]
+
+
+def _write_armar_problems(folder: Path) -> None:
+    """MoveIt scene/request YAML pairs in MotionBenchMaker's layout for ARMAR-III's right arm."""
+    import yaml
+
+    from prehensile import robots
+
+    model = robots.load("armar3")
+    arm = [model.joint_names[i] for i in model.chain_q_indices("RightArm")]
+    folder.mkdir(parents=True)
+    neutral = {"name": list(model.joint_names), "position": model.neutral_configuration().tolist()}
+    for k, (table, start, goal) in enumerate(ARMAR_PROBLEMS, 1):
+        boxes = {"table": ((0, 0, 0), (0.6, 0.5, 0.04)), "board": ((0, 0.05, 0.5), (0.5, 0.3, 0.02)),
+                 "post": ((0.3, 0, 0.25), (0.04, 0.04, 0.5))}
+        scene = {"name": f"shelf{k}", "robot_model_name": model.name, "robot_state": {"joint_state": neutral},
+                 "world": {"collision_objects": [
+                     {"id": name, "primitives": [{"type": "box", "dimensions": list(size)}],
+                      "primitive_poses": [{"position": np.add(table, offset).tolist(), "orientation": [0, 0, 0, 1]}]}
+                     for name, (offset, size) in boxes.items()]}}
+        start_state = dict(neutral, position=[dict(zip(arm, start)).get(n, v) for n, v in zip(*neutral.values())])
+        request = {"group_name": "RightArm", "start_state": {"joint_state": start_state},
+                   "goal_constraints": [{"joint_constraints": [{"joint_name": n, "position": v}
+                                                               for n, v in zip(arm, goal)]}]}
+        (folder / f"scene{k:04d}.yaml").write_text(yaml.safe_dump(scene))
+        (folder / f"request{k:04d}.yaml").write_text(yaml.safe_dump(request))
+
+
+def test_bench_mbm_another_robot_with_generated_balls(tmp_path):
+    """Any robot with an SRDF group: ARMAR-III's right arm, balls generated from its meshes."""
+    _write_armar_problems(tmp_path / "problems" / "shelf_armar3")
+    out = tmp_path / "report.json"
+    result = runner.invoke(app, ["bench", "mbm", str(tmp_path / "problems"), "--robot", "armar3",
+                                 "--budget", "2", "--json", str(out)])
+    assert result.exit_code == 0, result.output
+    report = json.loads(out.read_text())
+    _check_summary(report["overall"], len(ARMAR_PROBLEMS))
+    assert report["overall"]["solved"] == len(ARMAR_PROBLEMS)
+    assert report["overall"]["colliding_paths"] == 0
+    assert report["robot"]["joints"] == ["Shoulder_1_R", "Shoulder_2_R", "Upperarm_R", "Elbow_R", "Underarm_R",
+                                         "Wrist_1_R", "Wrist_2_R"]
+    assert report["robot"]["cover_spheres"] is None  # generated balls cover the meshes already
+    assert all(run["ours"]["waypoints"] > 2 for run in report["runs"])  # the straight motion is blocked
+
+
 def test_bad_problems_path_exits_2(tmp_path):
     result = runner.invoke(app, ["bench", "mbm", str(tmp_path / "missing"), "--robot", "panda"])
     assert result.exit_code == 2

@@ -132,3 +132,63 @@ def test_self_collision_respects_acm():
     assert [(a, b) for a, b, _ in exact.collisions(q)] == [("base", "fore")]
     assert not SphereChecker(model, [], acm=unchecked).is_free(q)
     assert exact.is_free(np.zeros(2)) and SphereChecker(model, [], acm=unchecked).is_free(np.zeros(2))
+
+
+
+def _every_pair(checker: ExactChecker, q: np.ndarray) -> tuple[set, dict]:
+    """Contacts as (link, other) and the distance (m) of every (link, other) pair, from coal on
+    every pair of geometries."""
+    import coal
+
+    from prehensile.collision.exact import coal_geometry
+    from prehensile.kinematics.forward import forward_kinematics
+
+    model, poses = checker.model, forward_kinematics(checker.model, q)
+
+    def placed(i):
+        return [(coal_geometry(g.shape), poses[i] @ g.T_link_geom) for g in model.collisions[i]]
+
+    def transform(T):
+        return coal.Transform3s(T[:3, :3].copy(), T[:3, 3].copy())
+
+    pairs = [(model.link_names[i], o.name, placed(i), [(coal_geometry(o.shape), o.T_world_shape)])
+             for i in range(model.n_links) for o in checker.obstacles]
+    pairs += [(model.link_names[i], model.link_names[j], placed(i), placed(j))
+              for i in range(model.n_links) for j in range(i + 1, model.n_links) if not checker.acm[i, j]]
+    contacts, distances = set(), {}
+    for a, b, parts_a, parts_b in pairs:
+        for ga, Ta in parts_a:
+            for gb, Tb in parts_b:
+                if coal.collide(ga, transform(Ta), gb, transform(Tb), coal.CollisionRequest(), coal.CollisionResult()):
+                    contacts.add((a, b))
+                d = coal.distance(ga, transform(Ta), gb, transform(Tb), coal.DistanceRequest(), coal.DistanceResult())
+                distances[a, b] = min(distances.get((a, b), np.inf), d)
+    return contacts, distances
+
+
+def test_bounding_ball_broadphase_answers_as_every_pair():
+    from prehensile import robots
+
+    model = robots.load("armar3")
+    arm = model.chain_q_indices("TorsoRightArm")
+    obstacles = [Obstacle("table", Box((0.8, 0.5, 0.04)), make_pose(position=[0.2, 0.6, 0.95])),
+                 Obstacle("post", Cylinder(0.04, 0.8), make_pose(position=[0.45, 0.5, 1.2]))]
+    checker = ExactChecker(model, obstacles)
+    rng = np.random.default_rng(4)
+    q = np.repeat(model.neutral_configuration()[None], 6, axis=0)
+    q[:, arm] = model.random_configurations(rng, 6)[:, arm]
+    free = checker.is_free(q)
+    assert 0 < free.sum() < len(q)  # both answers occur
+    # each colliding configuration and a free one just beside it, on the segment to a free one
+    a, b = q[free][0], q[~free][0]
+    for _ in range(30):
+        mid = 0.5 * (a + b)
+        a, b = (mid, b) if checker.is_free(mid) else (a, mid)
+    for x in [*q, a, b]:
+        contacts, distances = _every_pair(checker, x)
+        assert checker.is_free(x) == (not contacts)
+        assert {(link, other) for link, other, _ in checker.collisions(x)} == contacts
+        assert checker.min_distance(x) == pytest.approx(min(distances.values()), abs=1e-9)
+        near = {(p.link, p.other): p.distance for p in checker.closest_points(x, max_distance=0.1)}
+        world = {o.name for o in obstacles}
+        assert near == pytest.approx({k: d for k, d in distances.items() if k[1] in world and d <= 0.1}, abs=1e-9)

@@ -60,12 +60,29 @@ class ClosestPair(NamedTuple):
     point_on_other: np.ndarray
 
 
+_TOUCH = 1e-6  # bounding balls farther apart than this (m) cannot hold touching geometries
+
+
 def _transform(T: np.ndarray):
     return coal.Transform3s(np.ascontiguousarray(T[:3, :3]), np.ascontiguousarray(T[:3, 3]))
 
 
+def _bounding_balls(placed: Sequence[tuple]) -> tuple[np.ndarray, np.ndarray]:
+    """Centres (N, 3) in the frame of each pose and radii (N,) (m) of the balls around the
+    local AABBs of coal geometries given as (geometry, pose (4, 4) of the geometry)."""
+    centers, radii = np.zeros((len(placed), 3)), np.zeros(len(placed))
+    for k, (geom, T) in enumerate(placed):
+        geom.computeLocalAABB()
+        centers[k] = T[:3, :3] @ geom.aabb_center + T[:3, 3]
+        radii[k] = geom.aabb_radius
+    return centers, radii
+
+
 class ExactChecker:
     """Exact robot-vs-world and self-collision checks of one robot.
+
+    Every query first compares bounding balls (coal's local AABB of each geometry, as a ball)
+    and calls coal only on pairs whose balls meet: the answers are those of testing every pair.
 
     Args:
         model: the robot; every collision geometry of every link is used.
@@ -80,21 +97,78 @@ class ExactChecker:
         self.model = model
         self.T_world_base = np.eye(4) if T_world_base is None else np.asarray(T_world_base, dtype=float)
         self.acm = allowed_collision_matrix(model) if acm is None else np.asarray(acm, dtype=bool)
-        self._link_geoms = [[(coal_geometry(g.shape), np.asarray(g.T_link_geom, dtype=float)) for g in geoms]
+        link_geoms = [[(coal_geometry(g.shape), np.asarray(g.T_link_geom, dtype=float)) for g in geoms]
                             for geoms in model.collisions]
         self.obstacles = list(obstacles)
         self._obstacles = [(o.name, coal_geometry(o.shape), _transform(np.asarray(o.T_world_shape, dtype=float)))
                            for o in self.obstacles]
-        links = [i for i, g in enumerate(self._link_geoms) if g]
-        self._links = links
-        self._self_pairs = [(i, j) for a, i in enumerate(links) for j in links[a + 1:] if not self.acm[i, j]]
+        links = [i for i, g in enumerate(link_geoms) if g]
+        self_pairs = [(i, j) for a, i in enumerate(links) for j in links[a + 1:] if not self.acm[i, j]]
+        self._parts = [(i, geom, T) for i in range(len(link_geoms)) for geom, T in link_geoms[i]]
+        self._part_link = np.array([i for i, _, _ in self._parts], dtype=np.int64)
+        self._part_center, self._part_radius = _bounding_balls([(g, T) for _, g, T in self._parts])
+        self._obstacle_center, self._obstacle_radius = _bounding_balls(
+            [(geom, np.asarray(o.T_world_shape, dtype=float)) for o, (_, geom, _) in zip(self.obstacles, self._obstacles)])
+        first = np.cumsum([0] + [len(g) for g in link_geoms])
+        self._world_pairs = np.array([(p, o) for i in links for p in range(first[i], first[i + 1])
+                                      for o in range(len(self._obstacles))], dtype=np.int64).reshape(-1, 2)
+        self._part_pairs = np.array([(a, b) for i, j in self_pairs for a in range(first[i], first[i + 1])
+                                     for b in range(first[j], first[j + 1])], dtype=np.int64).reshape(-1, 2)
         self._request = coal.CollisionRequest()
         self._contact_request = coal.CollisionRequest(coal.CollisionRequestFlag.CONTACT, 1)
         self._distance_request = coal.DistanceRequest()
 
-    def _placed(self, poses: np.ndarray) -> list[list]:
-        """Per link, its coal geometries with world transforms for link poses (L, 4, 4)."""
-        return [[(geom, _transform(poses[i] @ T)) for geom, T in self._link_geoms[i]] for i in range(len(poses))]
+    def _poses(self, q: np.ndarray) -> np.ndarray:
+        """Link poses (B, L, 4, 4) of the configurations q (*batch, dof), checked."""
+        poses = forward_kinematics(self.model, self.model.check_configuration(q), self.T_world_base)
+        return poses.reshape(-1, self.model.n_links, 4, 4)
+
+    def _gaps(self, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Lower bounds (m) on the distance of every world pair (B, W) and self pair (B, S) of
+        geometries, from their bounding balls, for link poses (B, L, 4, 4)."""
+        frames = poses[:, self._part_link]
+        centers = np.einsum("bgij,gj->bgi", frames[..., :3, :3], self._part_center) + frames[..., :3, 3]
+        w, s = self._world_pairs, self._part_pairs
+        world = (np.linalg.norm(centers[:, w[:, 0]] - self._obstacle_center[w[:, 1]], axis=-1)
+                 - self._part_radius[w[:, 0]] - self._obstacle_radius[w[:, 1]])
+        own = (np.linalg.norm(centers[:, s[:, 0]] - centers[:, s[:, 1]], axis=-1)
+               - self._part_radius[s[:, 0]] - self._part_radius[s[:, 1]])
+        return world, own
+
+    def _placer(self, poses: np.ndarray):
+        """part(g) -> (coal geometry, world transform) of geometry g for link poses (L, 4, 4),
+        each transform built once, on first use."""
+        placed: dict[int, tuple] = {}
+
+        def part(g: int) -> tuple:
+            if g not in placed:
+                link, geom, T = self._parts[g]
+                placed[g] = (geom, _transform(poses[link] @ T))
+            return placed[g]
+
+        return part
+
+    def _world_candidates(self, part, gap: np.ndarray, within: float):
+        """(link index, obstacle index, placed geometry, obstacle geometry) of the world pairs
+        whose bounding balls are at most ``within`` m apart (``gap`` (W,) of one configuration)."""
+        for g, o in self._world_pairs[gap <= within]:
+            _, geom, T = self._obstacles[o]
+            yield self._parts[g][0], o, part(g), (geom, T)
+
+    def _self_candidates(self, part, gap: np.ndarray, within: float):
+        """(link index, link index, placed geometry, placed geometry) of the self pairs whose
+        bounding balls are at most ``within`` m apart (``gap`` (S,) of one configuration)."""
+        for a, b in self._part_pairs[gap <= within]:
+            yield self._parts[a][0], self._parts[b][0], part(a), part(b)
+
+    def _candidates(self, poses: np.ndarray, world_gap: np.ndarray, self_gap: np.ndarray, within: float):
+        """(link name, other name, geometry, geometry) of the world pairs, then the self pairs,
+        of one configuration (link poses (L, 4, 4)) whose bounding balls are at most ``within`` m apart."""
+        names, part = self.model.link_names, self._placer(poses)
+        for link, o, a, b in self._world_candidates(part, world_gap, within):
+            yield names[link], self._obstacles[o][0], a, b
+        for i, j, a, b in self._self_candidates(part, self_gap, within):
+            yield names[i], names[j], a, b
 
     def _collide(self, a, b, request) -> tuple[bool, float]:
         result = coal.CollisionResult()
@@ -104,47 +178,27 @@ class ExactChecker:
             depth = max((abs(c.penetration_depth) for c in result.getContacts()), default=0.0)
         return hit, depth
 
-    def _first_hit(self, placed) -> bool:
-        for i in self._links:
-            for part in placed[i]:
-                for _, geom, T in self._obstacles:
-                    if self._collide(part, (geom, T), self._request)[0]:
-                        return True
-        for i, j in self._self_pairs:
-            for a in placed[i]:
-                for b in placed[j]:
-                    if self._collide(a, b, self._request)[0]:
-                        return True
-        return False
-
     def is_free(self, q: np.ndarray) -> np.ndarray:
         """(*batch,) bool: no non-allowed pair touches, for q (*batch, dof) (rad or m)."""
-        q = self.model.check_configuration(q)
-        poses = forward_kinematics(self.model, q, self.T_world_base).reshape(-1, self.model.n_links, 4, 4)
-        free = np.array([not self._first_hit(self._placed(p)) for p in poses], dtype=bool)
-        return free.reshape(q.shape[:-1])
+        q = np.asarray(q, dtype=float)
+        poses = self._poses(q)
+        world, own = self._gaps(poses)
+        free = [not any(self._collide(a, b, self._request)[0] for _, _, a, b in self._candidates(p, w, s, _TOUCH))
+                for p, w, s in zip(poses, world, own)]
+        return np.array(free, dtype=bool).reshape(q.shape[:-1])
 
     def collisions(self, q: np.ndarray) -> list[tuple[str, str, float]]:
         """All contacts of one configuration q (dof,): (link, other, penetration depth m >= 0).
 
         ``other`` is an obstacle name or a link name; each pair of geometries reports once.
         """
-        q = self.model.check_configuration(q)
-        placed = self._placed(forward_kinematics(self.model, q, self.T_world_base))
-        names = self.model.link_names
+        poses = self._poses(q)
+        world, own = self._gaps(poses)
         out: list[tuple[str, str, float]] = []
-        for i in self._links:
-            for part in placed[i]:
-                for name, geom, T in self._obstacles:
-                    hit, depth = self._collide(part, (geom, T), self._contact_request)
-                    if hit:
-                        out.append((names[i], name, depth))
-        for i, j in self._self_pairs:
-            for a in placed[i]:
-                for b in placed[j]:
-                    hit, depth = self._collide(a, b, self._contact_request)
-                    if hit:
-                        out.append((names[i], names[j], depth))
+        for link, other, a, b in self._candidates(poses[0], world[0], own[0], _TOUCH):
+            hit, depth = self._collide(a, b, self._contact_request)
+            if hit:
+                out.append((link, other, depth))
         return out
 
     def _distance(self, a, b) -> float:
@@ -154,21 +208,13 @@ class ExactChecker:
     def min_distance(self, q: np.ndarray) -> np.ndarray:
         """(*batch,) smallest distance (m) over all checked pairs; negative when penetrating
         (coal's signed distance; +inf when nothing is checked)."""
-        q = self.model.check_configuration(q)
-        poses = forward_kinematics(self.model, q, self.T_world_base).reshape(-1, self.model.n_links, 4, 4)
+        q = np.asarray(q, dtype=float)
+        poses = self._poses(q)
+        world, own = self._gaps(poses)
         out = np.full(len(poses), np.inf)
-        for b, p in enumerate(poses):
-            placed = self._placed(p)
-            best = np.inf
-            for i in self._links:
-                for part in placed[i]:
-                    for _, geom, T in self._obstacles:
-                        best = min(best, self._distance(part, (geom, T)))
-            for i, j in self._self_pairs:
-                for a in placed[i]:
-                    for c in placed[j]:
-                        best = min(best, self._distance(a, c))
-            out[b] = best
+        for b, (p, w, s) in enumerate(zip(poses, world, own)):
+            for _, _, x, y in self._candidates(p, w, s, np.inf):
+                out[b] = min(out[b], self._distance(x, y))
         return out.reshape(q.shape[:-1])
 
     def closest_points(self, q: np.ndarray, max_distance: float = np.inf) -> list[ClosestPair]:
@@ -182,44 +228,25 @@ class ExactChecker:
             One :class:`ClosestPair` per (link with geometry, obstacle) within ``max_distance``,
             in link then obstacle order.
         """
-        q = self.model.check_configuration(q)
-        placed = self._placed(forward_kinematics(self.model, q, self.T_world_base))
-        names = self.model.link_names
-        out: list[ClosestPair] = []
-        for i in self._links:
-            for name, geom, T in self._obstacles:
-                best = None
-                for part in placed[i]:
-                    if np.isfinite(max_distance) and self._ball_distance(part, (geom, T)) > max_distance:
-                        continue
-                    result = coal.DistanceResult()
-                    d = float(coal.distance(part[0], part[1], geom, T, self._distance_request, result))
-                    if best is None or d < best.distance:
-                        best = ClosestPair(names[i], name, d, np.array(result.getNearestPoint1(), dtype=float),
-                                           np.array(result.getNearestPoint2(), dtype=float))
-                if best is not None and best.distance <= max_distance:
-                    out.append(best)
-        return out
-
-    def _ball_distance(self, part, other) -> float:
-        """Lower bound (m) on the distance of a placed geometry to another: its bounding ball's distance."""
-        geom, T = part
-        if geom.aabb_radius < 0:
-            geom.computeLocalAABB()  # once per geometry; coal leaves it unset until asked
-        center = T.getRotation() @ geom.aabb_center + T.getTranslation()
-        ball = (coal.Sphere(geom.aabb_radius), coal.Transform3s(np.eye(3), center))
-        return self._distance(ball, other)
+        poses = self._poses(q)
+        world, _ = self._gaps(poses)
+        best: dict[tuple[int, int], ClosestPair] = {}
+        for link, o, part, other in self._world_candidates(self._placer(poses[0]), world[0], max_distance):
+            result = coal.DistanceResult()
+            d = float(coal.distance(part[0], part[1], other[0], other[1], self._distance_request, result))
+            if d <= max_distance and ((link, o) not in best or d < best[link, o].distance):
+                best[link, o] = ClosestPair(self.model.link_names[link], self._obstacles[o][0], d,
+                                            np.array(result.getNearestPoint1(), dtype=float),
+                                            np.array(result.getNearestPoint2(), dtype=float))
+        return [best[key] for key in sorted(best)]
 
     def self_contacts(self, q: np.ndarray) -> np.ndarray:
         """(L, L) bool for one configuration q (dof,): which link pairs touch, over the pairs
         the checker's ACM does not skip (used by :func:`~prehensile.collision.acm.compute_acm`)."""
-        q = self.model.check_configuration(q)
-        placed = self._placed(forward_kinematics(self.model, q, self.T_world_base))
+        poses = self._poses(q)
+        _, own = self._gaps(poses)
         contact = np.zeros((self.model.n_links, self.model.n_links), dtype=bool)
-        for a, i in enumerate(self._links):
-            for j in self._links[a + 1:]:
-                if self.acm[i, j]:
-                    continue
-                hit = any(self._collide(x, y, self._request)[0] for x in placed[i] for y in placed[j])
-                contact[i, j] = contact[j, i] = hit
+        for i, j, a, b in self._self_candidates(self._placer(poses[0]), own[0], _TOUCH):
+            if not contact[i, j] and self._collide(a, b, self._request)[0]:
+                contact[i, j] = contact[j, i] = True
         return contact
