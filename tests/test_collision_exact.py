@@ -166,17 +166,27 @@ def _every_pair(checker: ExactChecker, q: np.ndarray) -> tuple[set, dict]:
     return contacts, distances
 
 
-def test_bounding_ball_broadphase_answers_as_every_pair():
+BROADPHASE_CASES = {  # robot, planned chain, obstacles: ARMAR-III's primitives, the Panda's meshes
+    "armar3": ("TorsoRightArm", [Obstacle("table", Box((0.8, 0.5, 0.04)), make_pose(position=[0.2, 0.6, 0.95])),
+                                 Obstacle("post", Cylinder(0.04, 0.8), make_pose(position=[0.45, 0.5, 1.2]))]),
+    "panda": ("arm", [Obstacle("table", Box((0.6, 0.8, 0.04)), make_pose(position=[0.5, 0.0, 0.3])),
+                      Obstacle("post", Cylinder(0.04, 0.8), make_pose(position=[0.3, 0.3, 0.4]))]),
+}
+
+
+@pytest.mark.parametrize("robot", sorted(BROADPHASE_CASES))
+def test_bounding_ball_and_hull_broadphase_answers_as_every_pair(robot):
     from prehensile import robots
 
-    model = robots.load("armar3")
-    arm = model.chain_q_indices("TorsoRightArm")
-    obstacles = [Obstacle("table", Box((0.8, 0.5, 0.04)), make_pose(position=[0.2, 0.6, 0.95])),
-                 Obstacle("post", Cylinder(0.04, 0.8), make_pose(position=[0.45, 0.5, 1.2]))]
+    if robot not in robots.available():
+        pytest.skip(f"robot {robot} is not installed")
+    model = robots.load(robot)
+    chain, obstacles = BROADPHASE_CASES[robot]
+    arm = model.chain_q_indices(chain)
     checker = ExactChecker(model, obstacles)
     rng = np.random.default_rng(4)
-    q = np.repeat(model.neutral_configuration()[None], 6, axis=0)
-    q[:, arm] = model.random_configurations(rng, 6)[:, arm]
+    q = np.repeat(model.neutral_configuration()[None], 20, axis=0)
+    q[:, arm] = model.random_configurations(rng, 20)[:, arm]
     free = checker.is_free(q)
     assert 0 < free.sum() < len(q)  # both answers occur
     # each colliding configuration and a free one just beside it, on the segment to a free one

@@ -60,11 +60,27 @@ class ClosestPair(NamedTuple):
     point_on_other: np.ndarray
 
 
-_TOUCH = 1e-6  # bounding balls farther apart than this (m) cannot hold touching geometries
+def convex_bound(shape: Shape, exact):
+    """A convex coal geometry containing ``shape`` whose coal geometry is ``exact``: the convex
+    hull for a mesh (``exact`` itself if qhull fails), ``exact`` for a primitive."""
+    if not isinstance(shape, Mesh):
+        return exact
+    points = coal.StdVec_Vec3s()
+    for p in np.asarray(shape.trimesh.vertices, dtype=float):
+        points.append(p)
+    try:
+        return coal.Convex.convexHull(points, False, "")
+    except Exception:  # flat or degenerate vertex set
+        return exact
 
 
-def _transform(T: np.ndarray):
+def coal_transform(T: np.ndarray):
+    """The coal transform of the pose T (4, 4)."""
     return coal.Transform3s(np.ascontiguousarray(T[:3, :3]), np.ascontiguousarray(T[:3, 3]))
+
+
+_TOUCH = 1e-6  # bounding balls farther apart than this (m) cannot hold touching geometries
+_EXACT, _BOUND = 0, 1  # a placed geometry is (exact, convex bound, transform)
 
 
 def _bounding_balls(placed: Sequence[tuple]) -> tuple[np.ndarray, np.ndarray]:
@@ -81,8 +97,9 @@ def _bounding_balls(placed: Sequence[tuple]) -> tuple[np.ndarray, np.ndarray]:
 class ExactChecker:
     """Exact robot-vs-world and self-collision checks of one robot.
 
-    Every query first compares bounding balls (coal's local AABB of each geometry, as a ball)
-    and calls coal only on pairs whose balls meet: the answers are those of testing every pair.
+    Every query first compares bounding balls (coal's local AABB of each geometry, as a ball),
+    then the convex hulls of meshes, and asks coal about a mesh only where both meet: the
+    answers are those of testing every pair on the exact geometry.
 
     Args:
         model: the robot; every collision geometry of every link is used.
@@ -97,19 +114,23 @@ class ExactChecker:
         self.model = model
         self.T_world_base = np.eye(4) if T_world_base is None else np.asarray(T_world_base, dtype=float)
         self.acm = allowed_collision_matrix(model) if acm is None else np.asarray(acm, dtype=bool)
-        link_geoms = [[(coal_geometry(g.shape), np.asarray(g.T_link_geom, dtype=float)) for g in geoms]
-                            for geoms in model.collisions]
         self.obstacles = list(obstacles)
-        self._obstacles = [(o.name, coal_geometry(o.shape), _transform(np.asarray(o.T_world_shape, dtype=float)))
-                           for o in self.obstacles]
-        links = [i for i, g in enumerate(link_geoms) if g]
+        self._obstacles = []  # (name, exact, convex bound, transform)
+        for o in self.obstacles:
+            exact = coal_geometry(o.shape)
+            self._obstacles.append((o.name, exact, convex_bound(o.shape, exact), coal_transform(o.T_world_shape)))
+        self._parts = []  # (link, exact, convex bound, T_link_geom)
+        for link, geoms in enumerate(model.collisions):
+            for g in geoms:
+                exact = coal_geometry(g.shape)
+                self._parts.append((link, exact, convex_bound(g.shape, exact), np.asarray(g.T_link_geom, dtype=float)))
+        links = [i for i, g in enumerate(model.collisions) if g]
         self_pairs = [(i, j) for a, i in enumerate(links) for j in links[a + 1:] if not self.acm[i, j]]
-        self._parts = [(i, geom, T) for i in range(len(link_geoms)) for geom, T in link_geoms[i]]
-        self._part_link = np.array([i for i, _, _ in self._parts], dtype=np.int64)
-        self._part_center, self._part_radius = _bounding_balls([(g, T) for _, g, T in self._parts])
+        self._part_link = np.array([p[0] for p in self._parts], dtype=np.int64)
+        self._part_center, self._part_radius = _bounding_balls([(p[1], p[3]) for p in self._parts])
         self._obstacle_center, self._obstacle_radius = _bounding_balls(
-            [(geom, np.asarray(o.T_world_shape, dtype=float)) for o, (_, geom, _) in zip(self.obstacles, self._obstacles)])
-        first = np.cumsum([0] + [len(g) for g in link_geoms])
+            [(exact, np.asarray(o.T_world_shape, dtype=float)) for o, (_, exact, _, _) in zip(self.obstacles, self._obstacles)])
+        first = np.cumsum([0] + [len(g) for g in model.collisions])
         self._world_pairs = np.array([(p, o) for i in links for p in range(first[i], first[i + 1])
                                       for o in range(len(self._obstacles))], dtype=np.int64).reshape(-1, 2)
         self._part_pairs = np.array([(a, b) for i, j in self_pairs for a in range(first[i], first[i + 1])
@@ -136,14 +157,14 @@ class ExactChecker:
         return world, own
 
     def _placer(self, poses: np.ndarray):
-        """part(g) -> (coal geometry, world transform) of geometry g for link poses (L, 4, 4),
-        each transform built once, on first use."""
+        """part(g) -> (exact, convex bound, world transform) of geometry g for link poses
+        (L, 4, 4), each transform built once, on first use."""
         placed: dict[int, tuple] = {}
 
         def part(g: int) -> tuple:
             if g not in placed:
-                link, geom, T = self._parts[g]
-                placed[g] = (geom, _transform(poses[link] @ T))
+                link, exact, bound, T = self._parts[g]
+                placed[g] = (exact, bound, coal_transform(poses[link] @ T))
             return placed[g]
 
         return part
@@ -152,8 +173,7 @@ class ExactChecker:
         """(link index, obstacle index, placed geometry, obstacle geometry) of the world pairs
         whose bounding balls are at most ``within`` m apart (``gap`` (W,) of one configuration)."""
         for g, o in self._world_pairs[gap <= within]:
-            _, geom, T = self._obstacles[o]
-            yield self._parts[g][0], o, part(g), (geom, T)
+            yield self._parts[g][0], o, part(g), self._obstacles[o][1:]
 
     def _self_candidates(self, part, gap: np.ndarray, within: float):
         """(link index, link index, placed geometry, placed geometry) of the self pairs whose
@@ -171,8 +191,12 @@ class ExactChecker:
             yield names[i], names[j], a, b
 
     def _collide(self, a, b, request) -> tuple[bool, float]:
+        """(whether the placed geometries a and b touch, penetration depth (m) if ``request`` asks for contacts)."""
+        if (a[_BOUND] is not a[_EXACT] or b[_BOUND] is not b[_EXACT]) and not coal.collide(
+                a[_BOUND], a[2], b[_BOUND], b[2], self._request, coal.CollisionResult()):
+            return False, 0.0
         result = coal.CollisionResult()
-        hit = coal.collide(a[0], a[1], b[0], b[1], request, result) > 0
+        hit = coal.collide(a[0], a[2], b[0], b[2], request, result) > 0
         depth = 0.0
         if hit and request.enable_contact:
             depth = max((abs(c.penetration_depth) for c in result.getContacts()), default=0.0)
@@ -201,9 +225,10 @@ class ExactChecker:
                 out.append((link, other, depth))
         return out
 
-    def _distance(self, a, b) -> float:
+    def _distance(self, a, b, which: int = _EXACT) -> float:
+        """Distance (m) of the placed geometries a and b: exact, or of their convex bounds (``_BOUND``)."""
         result = coal.DistanceResult()
-        return float(coal.distance(a[0], a[1], b[0], b[1], self._distance_request, result))
+        return float(coal.distance(a[which], a[2], b[which], b[2], self._distance_request, result))
 
     def min_distance(self, q: np.ndarray) -> np.ndarray:
         """(*batch,) smallest distance (m) over all checked pairs; negative when penetrating
@@ -222,7 +247,7 @@ class ExactChecker:
 
         A link with several geometries reports its closest one. Pairs farther apart than
         ``max_distance`` (m) are left out (a finite value skips geometries whose bounding ball
-        is farther, which is much faster for meshes); self pairs are not reported.
+        or convex hull is farther, which is much faster for meshes); self pairs are not reported.
 
         Returns:
             One :class:`ClosestPair` per (link with geometry, obstacle) within ``max_distance``,
@@ -232,8 +257,10 @@ class ExactChecker:
         world, _ = self._gaps(poses)
         best: dict[tuple[int, int], ClosestPair] = {}
         for link, o, part, other in self._world_candidates(self._placer(poses[0]), world[0], max_distance):
+            if np.isfinite(max_distance) and part[_BOUND] is not part[_EXACT] and self._distance(part, other, _BOUND) > max_distance:
+                continue
             result = coal.DistanceResult()
-            d = float(coal.distance(part[0], part[1], other[0], other[1], self._distance_request, result))
+            d = float(coal.distance(part[0], part[2], other[0], other[2], self._distance_request, result))
             if d <= max_distance and ((link, o) not in best or d < best[link, o].distance):
                 best[link, o] = ClosestPair(self.model.link_names[link], self._obstacles[o][0], d,
                                             np.array(result.getNearestPoint1(), dtype=float),

@@ -40,7 +40,7 @@ from numba import njit
 
 from prehensile.clock import clock
 from prehensile.collision import sphere_kernels as SK
-from prehensile.collision.exact import coal_geometry
+from prehensile.collision.exact import coal_geometry, coal_transform, convex_bound
 from prehensile.collision.sphere_checker import obstacle_arrays
 from prehensile.collision.spheres import SphereModel
 from prehensile.collision.world import Obstacle
@@ -113,24 +113,6 @@ def _link_balls(model: RobotModel) -> tuple[np.ndarray, np.ndarray]:
     return centers, radii
 
 
-def _convex_bound(shape, exact):
-    """A convex coal geometry containing ``shape``: its convex hull for a mesh (the exact
-    geometry if qhull fails), the primitive itself otherwise."""
-    if not isinstance(shape, Mesh):
-        return exact
-    points = coal.StdVec_Vec3s()
-    for p in np.asarray(shape.trimesh.vertices, dtype=float):
-        points.append(p)
-    try:
-        return coal.Convex.convexHull(points, False, "")
-    except Exception:  # flat or degenerate vertex set
-        return exact
-
-
-def _transform(T: np.ndarray):
-    return coal.Transform3s(np.ascontiguousarray(T[:3, :3]), np.ascontiguousarray(T[:3, 3]))
-
-
 class ExactCertifier:
     """Certifies paths of one robot (objects attached as links) in one world; see the module doc.
 
@@ -153,13 +135,13 @@ class ExactCertifier:
             for g in geometries:
                 exact = coal_geometry(g.shape)
                 self._parts.append((link, np.asarray(g.T_link_geom, dtype=float), exact,
-                                    _convex_bound(g.shape, exact), not isinstance(g.shape, Mesh)))
+                                    convex_bound(g.shape, exact), not isinstance(g.shape, Mesh)))
                 balls.append(_enclosing_ball(g))
         self._obstacles = []
         boxes = []  # per obstacle: world AABB (min xyz, max xyz)
         for o in obstacles:
             exact, T = coal_geometry(o.shape), np.asarray(o.T_world_shape, dtype=float)
-            self._obstacles.append((_transform(T), exact, _convex_bound(o.shape, exact), not isinstance(o.shape, Mesh)))
+            self._obstacles.append((coal_transform(T), exact, convex_bound(o.shape, exact), not isinstance(o.shape, Mesh)))
             exact.computeLocalAABB()
             lo, hi = np.asarray(exact.aabb_local.min_), np.asarray(exact.aabb_local.max_)
             center, half = T[:3, :3] @ (0.5 * (lo + hi)) + T[:3, 3], np.abs(T[:3, :3]) @ (0.5 * (hi - lo))
