@@ -18,7 +18,9 @@ from prehensile.model.geometry import Box, Capsule, Geometry, Sphere
 from prehensile.planning import (
     AttachedObject, PlanningContext, PlanStatus, RRTConnectSearch, RRTConnectSettings, rrt_connect, shortcut,
 )
+from prehensile.clock import clock
 from prehensile.collision import sphere_kernels as SK
+from prehensile.planning.certify import certified_escape
 from prehensile.planning.context import ball_joint_weights
 from prehensile.planning.kernels import BLOCKED, FREE, NO_LIMIT, _scales, motion_free
 from prehensile.planning.shortcut import prune, waypoint_marks
@@ -253,6 +255,9 @@ def test_goal_the_balls_reject_is_reached_by_a_certified_escape(arm):
     _check_result(ctx, result, start, goal)
     strict = RRTConnectSettings(time_budget_s=0.2, escape=False)
     assert rrt_connect(ctx, start, goal, strict).status is PlanStatus.INVALID_GOAL
+    rng = np.random.default_rng(0)
+    assert certified_escape(ctx, goal, start, rng, 0.5 * ctx.resolution) is not None
+    assert certified_escape(ctx, goal, start, rng, 0.5 * ctx.resolution, deadline=clock()) is None  # out of time
     inside = _box("inside", [0.92, 0.0, 0.1], [0.05, 0.05, 0.05])  # exactly colliding: no escape
     assert rrt_connect(PlanningContext(model, [inside], spheres=spheres), start, goal, FAST).status \
         is PlanStatus.INVALID_GOAL

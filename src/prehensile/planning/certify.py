@@ -378,7 +378,8 @@ def certify_path(ctx: PlanningContext, path: np.ndarray, resolution: float | Non
 
 
 def certified_escape(ctx: PlanningContext, q: np.ndarray, toward: np.ndarray, rng: np.random.Generator,
-                     clearance: float, reach: float = 0.3, attempts: int = 64, samples: int = 32) -> np.ndarray | None:
+                     clearance: float, reach: float = 0.3, attempts: int = 64, samples: int = 32,
+                     deadline: float = np.inf) -> np.ndarray | None:
     """A configuration the sphere model accepts, at least ``clearance`` (m) from the world,
     joined to q (dof,) by a straight segment certified on the exact geometry; None if there is none.
 
@@ -387,7 +388,7 @@ def certified_escape(ctx: PlanningContext, q: np.ndarray, toward: np.ndarray, rn
     from the escape configuration instead. Directions (planned joints only): toward ``toward``
     (dof,) first, then random ones from ``rng``; along each, the first of ``samples``
     configurations up to ``reach`` m (workspace-weighted) within the limits, free and clear
-    enough is tried.
+    enough is tried. No new direction is tried after ``deadline`` (s, :func:`~prehensile.clock.clock`).
     """
     idx, w = ctx.space.indices, ctx.space.weights
     if not ctx.certifier.certify(q[None], ctx.certify_resolution).ok:
@@ -395,6 +396,8 @@ def certified_escape(ctx: PlanningContext, q: np.ndarray, toward: np.ndarray, rn
     directions = np.vstack([toward[idx] - q[idx], rng.normal(size=(attempts - 1, len(idx)))])
     steps = reach * np.arange(1, samples + 1) / samples
     for d in directions:
+        if clock() >= deadline:
+            return None
         length = float(w @ np.abs(d))
         if length <= 0.0:
             continue

@@ -83,7 +83,7 @@ class _Search:
         q, info = self.sampler(rng, min(self.settings.ik_budget_s, max(deadline - clock(), 0.0)))
         if q is not None and bool(self.ctx.is_valid(q)):
             self.infos.append(info)
-            self.search.add_goals(q)
+            self.search.add_goals(q, deadline)
         remaining = deadline - clock()
         if not self.infos or remaining <= 0:
             return None

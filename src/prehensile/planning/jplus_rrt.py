@@ -253,7 +253,8 @@ def _grow(ctx: PlanningContext, q_start: np.ndarray, goals, s: JPlusRRTSettings,
     counted = int(ctx.counters[0])
     valid, escape = bool(ctx.is_valid(q_start)), None
     if not valid and s.escape and ctx.model.within_limits(q_start):
-        escape = certified_escape(ctx, q_start, q_start, rng, 0.5 * ctx.resolution)  # random directions
+        escape = certified_escape(ctx, q_start, q_start, rng, 0.5 * ctx.resolution,  # random directions
+                                  deadline=start_time + s.time_budget_s)
     if not valid and escape is None:
         return _result(PlanStatus.INVALID_START, ctx, 0, 0, counted, start_time)
     tree = _Tree(q_start, goals.tools(q_start), s.max_nodes)

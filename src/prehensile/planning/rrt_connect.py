@@ -340,10 +340,11 @@ class _Trees:
 
 
 def _endpoints(ctx: PlanningContext, qs: np.ndarray, toward: np.ndarray, settings: RRTConnectSettings,
-               rng: np.random.Generator) -> list[list | None]:
+               rng: np.random.Generator, deadline: float) -> list[list | None]:
     """Per configuration of qs (k, dof): its tree nodes [(q, -1, flags)] plus, if it needs one,
-    its certified escape node [(escape, 0, _CHECKED)] (moving toward ``toward`` (k, dof)); None
-    if it is unusable (outside the limits, or colliding for the balls without an escape)."""
+    its certified escape node [(escape, 0, _CHECKED)] (moving toward ``toward`` (k, dof), searched
+    until ``deadline`` (s, :func:`~prehensile.clock.clock`)); None if it is unusable (outside the
+    limits, or colliding for the balls without an escape)."""
     inside = ctx.model.within_limits(qs) & ctx.static_free(qs)  # no escape from a static contact
     free, near = ctx.spheres.screen(qs, 0.5 * ctx.resolution)
     valid, tight = inside & free, inside & near
@@ -351,7 +352,7 @@ def _endpoints(ctx: PlanningContext, qs: np.ndarray, toward: np.ndarray, setting
     for i, q in enumerate(qs):
         escape = None
         if settings.escape and inside[i] and (tight[i] or not valid[i]):
-            escape = certified_escape(ctx, q, toward[i], rng, 0.5 * ctx.resolution)
+            escape = certified_escape(ctx, q, toward[i], rng, 0.5 * ctx.resolution, deadline=deadline)
         if not valid[i] and escape is None:
             out.append(None)
             continue
@@ -394,8 +395,10 @@ class RRTConnectSearch:
         self.escapes = 0  # certified escape nodes in the trees
         self._setup_s = clock() - started  # counted into the next solve's search time
 
-    def add_goals(self, q_goals: np.ndarray) -> None:
-        """Add a goal (dof,) or goals (k, dof); the joints not planned must equal the start's."""
+    def add_goals(self, q_goals: np.ndarray, deadline: float = np.inf) -> None:
+        """Add a goal (dof,) or goals (k, dof); the joints not planned must equal the start's. A
+        goal that needs a certified escape gets none found after ``deadline`` (s,
+        :func:`~prehensile.clock.clock`)."""
         started = clock()
         model, space = self.ctx.model, self.ctx.space
         goals = model.check_configuration(q_goals, "q_goal")
@@ -409,15 +412,15 @@ class RRTConnectSearch:
         first = len(self.goals)
         self.goals = np.concatenate((self.goals, goals))
         if self.trees is not None:
-            self._append_goals(first)
+            self._append_goals(first, deadline)
         self._setup_s += clock() - started
 
-    def _append_goals(self, first: int) -> None:
-        """Put goals[first:] (with their escape nodes) into the goal tree."""
+    def _append_goals(self, first: int, deadline: float) -> None:
+        """Put goals[first:] (with their escape nodes, searched until ``deadline``) into the goal tree."""
         goals = self.goals[first:]
         toward = np.empty_like(goals)
         toward[:] = self.start
-        self._add_goal_nodes(first, _endpoints(self.context, goals, toward, self.settings, self.rng))
+        self._add_goal_nodes(first, _endpoints(self.context, goals, toward, self.settings, self.rng, deadline))
 
     def _add_goal_nodes(self, first: int, goal_nodes: list) -> None:
         for row, nodes in enumerate(goal_nodes, first):
@@ -425,13 +428,14 @@ class RRTConnectSearch:
                 self.goal_row[self.trees.append(1, nodes)] = row
                 self.escapes += len(nodes) - 1
 
-    def _build_trees(self) -> None:
-        """New trees in the current context: the start (and its escape) and every goal."""
+    def _build_trees(self, deadline: float) -> None:
+        """New trees in the current context: the start (and its escape, searched until
+        ``deadline``) and every goal."""
         self.goal_row, self.trees = {}, None
         qs = np.concatenate((self.start[None], self.goals))
         toward = np.empty_like(qs)  # the start escapes toward the first goal, goals toward the start
         toward[0], toward[1:] = self.goals[0] if len(self.goals) else self.start, self.start
-        start, *goal_nodes = _endpoints(self.context, qs, toward, self.settings, self.rng)
+        start, *goal_nodes = _endpoints(self.context, qs, toward, self.settings, self.rng, deadline)
         self.start_status = PlanStatus.INVALID_START if start is None else None
         if start is not None:
             self.trees = _Trees(start, min(1024, self.settings.max_nodes), self.context.space)
@@ -494,7 +498,7 @@ class RRTConnectSearch:
         for attempt in range(settings.certify_retries + 1):
             begun = clock()
             if self.trees is None and self.start_status is None:
-                self._build_trees()
+                self._build_trees(deadline)
             if self.trees is None or not self.goal_row:
                 status = self.start_status or PlanStatus.INVALID_GOAL
                 if report is None:
