@@ -26,8 +26,8 @@ Choices the thesis leaves open:
   band does not oscillate between two near links (the thesis ignores ties).
 * J⁺ is the damped least-squares inverse ``Jᵀ (J Jᵀ + λ² I)⁻¹``, bounded near singularities.
 * Waypoints are updated in order (Gauss-Seidel), each with its current neighbours. An update
-  is kept only if the new waypoint is valid and both adjacent edges pass
-  ``ctx.check_motion``; otherwise the waypoint stays. So a valid path stays valid, and the
+  is kept only if both adjacent edges pass ``ctx.check_motion`` (which tests the new waypoint's
+  validity too); otherwise the waypoint stays. So a valid path stays valid, and the
   start and goal never move.
 * The stopping rule bounds the largest step of an iteration, not the sum over waypoints
   (Σ‖f(i)‖ < δ in the thesis), which would depend on how finely the path is subdivided.
@@ -177,7 +177,7 @@ def elastic_band(ctx, path: np.ndarray, settings: ElasticBandSettings = ElasticB
             candidate = np.clip(band[i] + step, space.lower, space.upper)
             q = path[i].copy()
             q[space.indices] = candidate
-            if ctx.is_valid(q) and ctx.check_motion(path[i - 1], q) and ctx.check_motion(q, path[i + 1]):
+            if ctx.check_motion(path[i - 1], q) and ctx.check_motion(q, path[i + 1]):  # checks q's validity too
                 band[i], path[i] = candidate, q
                 accepted += 1
         log.debug("elastic band iteration %d: largest step %.4g, %d waypoints moved", iteration, largest, accepted)
