@@ -83,22 +83,38 @@ _TOUCH = 1e-6  # bounding balls farther apart than this (m) cannot hold touching
 _EXACT, _BOUND = 0, 1  # a placed geometry is (exact, convex bound, transform)
 
 
-def _bounding_balls(placed: Sequence[tuple]) -> tuple[np.ndarray, np.ndarray]:
-    """Centres (N, 3) in the frame of each pose and radii (N,) (m) of the balls around the
-    local AABBs of coal geometries given as (geometry, pose (4, 4) of the geometry)."""
-    centers, radii = np.zeros((len(placed), 3)), np.zeros(len(placed))
-    for k, (geom, T) in enumerate(placed):
-        geom.computeLocalAABB()
-        centers[k] = T[:3, :3] @ geom.aabb_center + T[:3, 3]
-        radii[k] = geom.aabb_radius
-    return centers, radii
+def enclosing_ball(shape: Shape, T: np.ndarray) -> tuple[np.ndarray, float]:
+    """Centre (3,) and radius (m) of a ball containing ``shape`` placed at the pose T (4, 4)
+    (the centre in T's parent frame)."""
+    T = np.asarray(T, dtype=float)
+    if isinstance(shape, Mesh):
+        points = np.asarray(shape.trimesh.vertices, dtype=float) @ T[:3, :3].T + T[:3, 3]
+        center = 0.5 * (points.min(axis=0) + points.max(axis=0))
+        return center, float(np.max(np.linalg.norm(points - center, axis=1), initial=0.0))
+    if isinstance(shape, Box):
+        radius = 0.5 * float(np.linalg.norm(shape.size))
+    elif isinstance(shape, Sphere):
+        radius = float(shape.radius)
+    elif isinstance(shape, Cylinder):
+        radius = float(np.hypot(shape.radius, 0.5 * shape.length))
+    elif isinstance(shape, Capsule):
+        radius = float(shape.radius + 0.5 * shape.length)
+    else:
+        raise TypeError(f"unsupported shape {type(shape).__name__}; valid: Box, Sphere, Cylinder, Capsule, Mesh")
+    return T[:3, 3].copy(), radius
+
+
+def _enclosing_balls(placed: Sequence[tuple[Shape, np.ndarray]]) -> tuple[np.ndarray, np.ndarray]:
+    """Centres (N, 3) and radii (N,) (m) of :func:`enclosing_ball` of each (shape, pose (4, 4))."""
+    balls = [enclosing_ball(shape, T) for shape, T in placed]
+    return np.array([c for c, _ in balls]).reshape(-1, 3), np.array([r for _, r in balls])
 
 
 class ExactChecker:
     """Exact robot-vs-world and self-collision checks of one robot.
 
-    Every query first compares bounding balls (coal's local AABB of each geometry, as a ball),
-    then the convex hulls of meshes, and asks coal about a mesh only where both meet: the
+    Every query first compares bounding balls (:func:`enclosing_ball`), then the convex hulls
+    of meshes, and asks coal about a mesh only where both meet: the
     answers are those of testing every pair on the exact geometry.
 
     Args:
@@ -124,12 +140,13 @@ class ExactChecker:
             for g in geoms:
                 exact = coal_geometry(g.shape)
                 self._parts.append((link, exact, convex_bound(g.shape, exact), np.asarray(g.T_link_geom, dtype=float)))
+        geometries = [g for geoms in model.collisions for g in geoms]
         links = [i for i, g in enumerate(model.collisions) if g]
         self_pairs = [(i, j) for a, i in enumerate(links) for j in links[a + 1:] if not self.acm[i, j]]
         self._part_link = np.array([p[0] for p in self._parts], dtype=np.int64)
-        self._part_center, self._part_radius = _bounding_balls([(p[1], p[3]) for p in self._parts])
-        self._obstacle_center, self._obstacle_radius = _bounding_balls(
-            [(exact, np.asarray(o.T_world_shape, dtype=float)) for o, (_, exact, _, _) in zip(self.obstacles, self._obstacles)])
+        self._part_center, self._part_radius = _enclosing_balls([(g.shape, g.T_link_geom) for g in geometries])
+        self._obstacle_center, self._obstacle_radius = _enclosing_balls([(o.shape, o.T_world_shape)
+                                                                         for o in self.obstacles])
         first = np.cumsum([0] + [len(g) for g in model.collisions])
         self._world_pairs = np.array([(p, o) for i in links for p in range(first[i], first[i + 1])
                                       for o in range(len(self._obstacles))], dtype=np.int64).reshape(-1, 2)

@@ -40,13 +40,13 @@ from numba import njit
 
 from prehensile.clock import clock
 from prehensile.collision import sphere_kernels as SK
-from prehensile.collision.exact import coal_geometry, coal_transform, convex_bound
+from prehensile.collision.exact import coal_geometry, coal_transform, convex_bound, enclosing_ball
 from prehensile.collision.sphere_checker import obstacle_arrays
 from prehensile.collision.spheres import SphereModel
 from prehensile.collision.world import Obstacle
 from prehensile.errors import PrehensileError
 from prehensile.kinematics.kernels import fk_into
-from prehensile.model.geometry import Box, Capsule, Cylinder, Geometry, Mesh, Sphere
+from prehensile.model.geometry import Mesh
 from prehensile.model.robot_model import RobotModel
 from prehensile.planning.context import PlanningContext, motion_weights
 
@@ -80,32 +80,12 @@ class CertifyReport:
     colliding_links: tuple[str, ...] = ()
 
 
-def _enclosing_ball(geometry: Geometry) -> tuple[np.ndarray, float]:
-    """Centre (3,) in the link frame and radius (m) of a ball containing the geometry."""
-    shape, T = geometry.shape, np.asarray(geometry.T_link_geom, dtype=float)
-    if isinstance(shape, Mesh):
-        points = np.asarray(shape.trimesh.vertices, dtype=float) @ T[:3, :3].T + T[:3, 3]
-        center = 0.5 * (points.min(axis=0) + points.max(axis=0))
-        return center, float(np.max(np.linalg.norm(points - center, axis=1), initial=0.0))
-    if isinstance(shape, Box):
-        radius = 0.5 * float(np.linalg.norm(shape.size))
-    elif isinstance(shape, Sphere):
-        radius = float(shape.radius)
-    elif isinstance(shape, Cylinder):
-        radius = float(np.hypot(shape.radius, 0.5 * shape.length))
-    elif isinstance(shape, Capsule):
-        radius = float(shape.radius + 0.5 * shape.length)
-    else:
-        raise TypeError(f"unsupported shape {type(shape).__name__}")
-    return T[:3, 3].copy(), radius
-
-
 def _link_balls(model: RobotModel) -> tuple[np.ndarray, np.ndarray]:
     """Per link a ball (centre (L, 3), radius (L,)) containing all its collision geometry;
     radius -1 for links without geometry."""
     centers, radii = np.zeros((model.n_links, 3)), np.full(model.n_links, -1.0)
     for link, geometries in enumerate(model.collisions):
-        balls = [_enclosing_ball(g) for g in geometries]
+        balls = [enclosing_ball(g.shape, g.T_link_geom) for g in geometries]
         if balls:
             c = np.array([b[0] for b in balls])
             centers[link] = 0.5 * (c.min(axis=0) + c.max(axis=0))
@@ -136,7 +116,7 @@ class ExactCertifier:
                 exact = coal_geometry(g.shape)
                 self._parts.append((link, np.asarray(g.T_link_geom, dtype=float), exact,
                                     convex_bound(g.shape, exact), not isinstance(g.shape, Mesh)))
-                balls.append(_enclosing_ball(g))
+                balls.append(enclosing_ball(g.shape, g.T_link_geom))
         self._obstacles = []
         boxes = []  # per obstacle: world AABB (min xyz, max xyz)
         for o in obstacles:
