@@ -62,15 +62,22 @@ class ClosestPair(NamedTuple):
 
 def convex_bound(shape: Shape, exact):
     """A convex coal geometry containing ``shape`` whose coal geometry is ``exact``: the convex
-    hull for a mesh (``exact`` itself if qhull fails), ``exact`` for a primitive."""
+    hull for a mesh, ``exact`` for a primitive or a flat mesh (qhull needs a solid vertex set:
+    coal's call crashes the interpreter on a flat one)."""
     if not isinstance(shape, Mesh):
         return exact
+    vertices = np.asarray(shape.trimesh.vertices, dtype=float)
+    if len(vertices) < 4:
+        return exact
+    spread = np.linalg.svd(vertices - vertices.mean(axis=0), compute_uv=False)
+    if spread[2] <= 1e-9 * max(spread[0], 1e-12):
+        return exact
     points = coal.StdVec_Vec3s()
-    for p in np.asarray(shape.trimesh.vertices, dtype=float):
+    for p in vertices:
         points.append(p)
     try:
         return coal.Convex.convexHull(points, False, "")
-    except Exception:  # flat or degenerate vertex set
+    except Exception:  # qhull refused the vertex set
         return exact
 
 
@@ -79,7 +86,7 @@ def coal_transform(T: np.ndarray):
     return coal.Transform3s(np.ascontiguousarray(T[:3, :3]), np.ascontiguousarray(T[:3, 3]))
 
 
-_TOUCH = 1e-6  # bounding balls farther apart than this (m) cannot hold touching geometries
+_SLACK = 1e-5  # m: bounds this far apart may still hold geometries that coal finds touching
 _EXACT, _BOUND = 0, 1  # a placed geometry is (exact, convex bound, transform)
 
 
@@ -153,6 +160,8 @@ class ExactChecker:
         self._part_pairs = np.array([(a, b) for i, j in self_pairs for a in range(first[i], first[i + 1])
                                      for b in range(first[j], first[j + 1])], dtype=np.int64).reshape(-1, 2)
         self._request = coal.CollisionRequest()
+        self._bound_request = coal.CollisionRequest()  # hulls within the slack "collide"
+        self._bound_request.security_margin = _SLACK
         self._contact_request = coal.CollisionRequest(coal.CollisionRequestFlag.CONTACT, 1)
         self._distance_request = coal.DistanceRequest()
 
@@ -210,7 +219,7 @@ class ExactChecker:
     def _collide(self, a, b, request) -> tuple[bool, float]:
         """(whether the placed geometries a and b touch, penetration depth (m) if ``request`` asks for contacts)."""
         if (a[_BOUND] is not a[_EXACT] or b[_BOUND] is not b[_EXACT]) and not coal.collide(
-                a[_BOUND], a[2], b[_BOUND], b[2], self._request, coal.CollisionResult()):
+                a[_BOUND], a[2], b[_BOUND], b[2], self._bound_request, coal.CollisionResult()):
             return False, 0.0
         result = coal.CollisionResult()
         hit = coal.collide(a[0], a[2], b[0], b[2], request, result) > 0
@@ -224,7 +233,7 @@ class ExactChecker:
         q = np.asarray(q, dtype=float)
         poses = self._poses(q)
         world, own = self._gaps(poses)
-        free = [not any(self._collide(a, b, self._request)[0] for _, _, a, b in self._candidates(p, w, s, _TOUCH))
+        free = [not any(self._collide(a, b, self._request)[0] for _, _, a, b in self._candidates(p, w, s, _SLACK))
                 for p, w, s in zip(poses, world, own)]
         return np.array(free, dtype=bool).reshape(q.shape[:-1])
 
@@ -236,7 +245,7 @@ class ExactChecker:
         poses = self._poses(q)
         world, own = self._gaps(poses)
         out: list[tuple[str, str, float]] = []
-        for link, other, a, b in self._candidates(poses[0], world[0], own[0], _TOUCH):
+        for link, other, a, b in self._candidates(poses[0], world[0], own[0], _SLACK):
             hit, depth = self._collide(a, b, self._contact_request)
             if hit:
                 out.append((link, other, depth))
@@ -273,8 +282,9 @@ class ExactChecker:
         poses = self._poses(q)
         world, _ = self._gaps(poses)
         best: dict[tuple[int, int], ClosestPair] = {}
-        for link, o, part, other in self._world_candidates(self._placer(poses[0]), world[0], max_distance):
-            if np.isfinite(max_distance) and part[_BOUND] is not part[_EXACT] and self._distance(part, other, _BOUND) > max_distance:
+        within = max_distance + _SLACK
+        for link, o, part, other in self._world_candidates(self._placer(poses[0]), world[0], within):
+            if np.isfinite(within) and part[_BOUND] is not part[_EXACT] and self._distance(part, other, _BOUND) > within:
                 continue
             result = coal.DistanceResult()
             d = float(coal.distance(part[0], part[2], other[0], other[2], self._distance_request, result))
@@ -290,7 +300,7 @@ class ExactChecker:
         poses = self._poses(q)
         _, own = self._gaps(poses)
         contact = np.zeros((self.model.n_links, self.model.n_links), dtype=bool)
-        for i, j, a, b in self._self_candidates(self._placer(poses[0]), own[0], _TOUCH):
+        for i, j, a, b in self._self_candidates(self._placer(poses[0]), own[0], _SLACK):
             if not contact[i, j] and self._collide(a, b, self._request)[0]:
                 contact[i, j] = contact[j, i] = True
         return contact
