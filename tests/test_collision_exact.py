@@ -9,6 +9,7 @@ from prehensile.collision.acm import allowed_collision_matrix, compute_acm, rigi
 from prehensile.collision.exact import ExactChecker
 from prehensile.collision.sphere_checker import SphereChecker
 from prehensile.collision.world import Obstacle
+from prehensile.errors import PrehensileError
 from prehensile.model.builder import JointSpec, LinkSpec, build_model
 from prehensile.model.geometry import Box, Capsule, Cylinder, Geometry, Sphere
 from prehensile.spatial import make_pose
@@ -218,3 +219,15 @@ def test_flat_mesh_obstacle_is_checked_on_its_triangles():
         checker = ExactChecker(model, [Obstacle("plate", plate, make_pose(position=[0.0, 0.0, height]))])
         assert checker.is_free(np.zeros(2)) == free
         assert (checker.min_distance(np.zeros(2)) <= 0) == (not free)
+
+
+@pytest.mark.parametrize("obstacles, message", [
+    ([Obstacle("box", Box((0.1, 0.1, 0.1)), np.full((4, 4), np.nan))], "'box': T_world_shape"),
+    ([Obstacle("box", Box((0.1, -0.1, 0.1)), np.eye(4))], "positive size"),
+    (Obstacle("box", Box((0.1, 0.1, 0.1)), np.eye(4)), "got one Obstacle"),
+    ([Obstacle("box", Box((0.1, 0.1, 0.1)), np.eye(3))], "T_world_shape"),
+])
+def test_bad_obstacles_are_errors_naming_them(obstacles, message):
+    for checker in (ExactChecker, SphereChecker):
+        with pytest.raises(PrehensileError, match=message):
+            checker(_arm(), obstacles)

@@ -5,9 +5,10 @@ and a goal that are valid on the exact geometry and not joined by a free straigh
     python benchmarks/mbm/shelf_problems.py armar3 RightArm /tmp/armar3_shelf --count 10
     prehensile bench mbm /tmp/armar3_shelf --robot armar3 --compare-ompl
 
-The table's centre is 0.45 m from the group's base along ``--forward`` (a horizontal world
-direction; default +y, ARMAR-III's front; the Panda's is +x) and ``--drop`` m below the base,
-moved by up to 5 cm per axis from problem to problem.
+The table's centre is ``--distance`` m from the group's base along ``--forward`` (a
+horizontal world direction; default +y, ARMAR-III's front; the Panda's is +x) and ``--drop``
+m below the base, moved by up to 5 cm per axis from problem to problem; the boxes are sized
+for an arm of about 0.5-1 m reach. Problems go to OUT/shelf_ROBOT_GROUP/.
 """
 
 from __future__ import annotations
@@ -71,24 +72,30 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("robot", help="bundled robot name or robot file")
     parser.add_argument("group", help="SRDF group (chain) to plan")
-    parser.add_argument("out", type=Path, help="output folder (problems go to OUT/shelf_ROBOT/)")
+    parser.add_argument("out", type=Path, help="output folder (problems go to OUT/shelf_ROBOT_GROUP/)")
     parser.add_argument("--count", type=int, default=10)
     parser.add_argument("--forward", type=float, nargs=2, default=(0.0, 1.0), metavar=("X", "Y"),
                         help="horizontal direction from the base to the table")
+    parser.add_argument("--distance", type=float, default=0.45, help="table centre from the group's base (m)")
     parser.add_argument("--drop", type=float, default=0.45, help="table below the group's base (m)")
+    parser.add_argument("--scenes", type=int, default=200, help="give up after this many scenes without a problem")
     parser.add_argument("--seed", type=int, default=1)
     args = parser.parse_args()
     model = robots.load(args.robot)
     chain = model.chain(args.group)
     base = link_pose(model, model.neutral_configuration(), chain.base_link)[:3, 3]
-    folder = args.out / f"shelf_{model.name}"
-    folder.mkdir(parents=True, exist_ok=True)
     forward = np.array([args.forward[0], args.forward[1], 0.0])
+    if not np.linalg.norm(forward) > 0:
+        parser.error("--forward must be a nonzero horizontal direction")
     forward /= np.linalg.norm(forward)
+    folder = args.out / f"shelf_{model.name}_{args.group}"
+    folder.mkdir(parents=True, exist_ok=True)
     yaw = float(np.arctan2(forward[1], forward[0]) - np.pi / 2)
     rng, k = np.random.default_rng(args.seed), 0
-    while k < args.count:
-        table = base + 0.45 * forward + np.array([0.0, 0.0, -args.drop]) + rng.uniform(-0.05, 0.05, 3)
+    for _ in range(args.scenes * args.count):
+        if k == args.count:
+            break
+        table = base + args.distance * forward + np.array([0.0, 0.0, -args.drop]) + rng.uniform(-0.05, 0.05, 3)
         obstacles = shelf(table, yaw)
         ctx = PlanningContext(model, obstacles, joints=list(chain.joint_names), q_ref=model.neutral_configuration())
         ends = problem(model, args.group, ctx, rng)
@@ -96,6 +103,10 @@ def main() -> None:
             k += 1
             write(folder, k, model, args.group, obstacles, yaw, *ends)
     print(f"wrote {k} problems to {folder}")
+    if k < args.count:
+        raise SystemExit(f"found only {k} of {args.count} problems in {args.scenes * args.count} scenes: the start and "
+                         "goal must be free and their straight motion blocked; try another --distance, --drop or "
+                         "--forward (the boxes may be out of the group's reach)")
 
 
 if __name__ == "__main__":

@@ -15,7 +15,7 @@ import coal
 import numpy as np
 
 from prehensile.collision.acm import allowed_collision_matrix
-from prehensile.collision.world import Obstacle
+from prehensile.collision.world import Obstacle, check_obstacles
 from prehensile.kinematics.forward import forward_kinematics
 from prehensile.model.geometry import Box, Capsule, Cylinder, Mesh, Shape, Sphere
 from prehensile.model.robot_model import RobotModel
@@ -137,7 +137,7 @@ class ExactChecker:
         self.model = model
         self.T_world_base = np.eye(4) if T_world_base is None else np.asarray(T_world_base, dtype=float)
         self.acm = allowed_collision_matrix(model) if acm is None else np.asarray(acm, dtype=bool)
-        self.obstacles = list(obstacles)
+        self.obstacles = check_obstacles(obstacles)
         self._obstacles = []  # (name, exact, convex bound, transform)
         for o in self.obstacles:
             exact = coal_geometry(o.shape)

@@ -22,7 +22,7 @@ from prehensile.collision import sphere_kernels as K
 from prehensile.collision.acm import allowed_collision_matrix, rigid_bodies
 from prehensile.collision.sphere_fit import cover_geometries
 from prehensile.collision.spheres import SphereModel, generate_sphere_model
-from prehensile.collision.world import Obstacle
+from prehensile.collision.world import Obstacle, check_obstacles
 from prehensile.errors import PrehensileError
 from prehensile.kinematics.forward import forward_kinematics
 from prehensile.model.geometry import Box, Capsule, Cylinder, Geometry, Mesh, Sphere
@@ -200,7 +200,7 @@ class SphereChecker:
         pairs.sort(key=lambda p: (_tree_distance(model, int(g_link[p[0]]), int(g_link[p[1]])), p))
         count = lambda g: groups["ranges"][g, 1] - groups["ranges"][g, 0]  # noqa: E731
         pairs = [(a, b) if count(a) <= count(b) else (b, a) for a, b in pairs]
-        self.obstacle_data = obstacle_arrays(obstacles, mesh_spheres)
+        self.obstacle_data = obstacle_arrays(check_obstacles(obstacles), mesh_spheres)
         d = self.obstacle_data
         static = groups["frame"] == 0  # frame 0 is the model root: it never moves
         self.data = (

@@ -371,7 +371,7 @@ def certified_escape(ctx: PlanningContext, q: np.ndarray, toward: np.ndarray, rn
     enough is tried. No new direction is tried after ``deadline`` (s, :func:`~prehensile.clock.clock`).
     """
     idx, w = ctx.space.indices, ctx.space.weights
-    if not ctx.certifier.certify(q[None], ctx.certify_resolution).ok:
+    if clock() >= deadline or not ctx.certifier.certify(q[None], ctx.certify_resolution).ok:
         return None
     directions = np.vstack([toward[idx] - q[idx], rng.normal(size=(attempts - 1, len(idx)))])
     steps = reach * np.arange(1, samples + 1) / samples
