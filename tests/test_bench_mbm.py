@@ -145,6 +145,25 @@ def test_bench_mbm_another_robot_with_generated_balls(tmp_path):
     assert all(run["ours"]["waypoints"] > 2 for run in report["runs"])  # the straight motion is blocked
 
 
+
+@pytest.mark.parametrize("goal, message", [
+    ({}, "no joint goal"),
+    ({"Elbow_X": 0.1}, "robot 'armar3' has no joint Elbow_X"),
+    ({"Elbow_L": 0.1}, "Elbow_L not in the planned group 'RightArm'"),
+    ({"Elbow_R": 0.1}, "no goal for planned joint"),
+])
+def test_bad_goal_exits_2_naming_the_request(tmp_path, goal, message):
+    import yaml
+
+    folder = tmp_path / "problems" / "shelf_armar3"
+    _write_armar_problems(folder)
+    request = yaml.safe_load((folder / "request0001.yaml").read_text())
+    request["goal_constraints"] = [{"joint_constraints": [{"joint_name": j, "position": v} for j, v in goal.items()]}]
+    (folder / "request0001.yaml").write_text(yaml.safe_dump(request))
+    result = runner.invoke(app, ["bench", "mbm", str(tmp_path / "problems"), "--robot", "armar3", "--budget", "0.1"])
+    assert result.exit_code == 2, result.output
+    assert "request0001.yaml" in result.output and message in " ".join(result.output.split())
+
 def test_bad_problems_path_exits_2(tmp_path):
     result = runner.invoke(app, ["bench", "mbm", str(tmp_path / "missing"), "--robot", "panda"])
     assert result.exit_code == 2

@@ -258,6 +258,9 @@ def test_goal_the_balls_reject_is_reached_by_a_certified_escape(arm):
     rng = np.random.default_rng(0)
     assert certified_escape(ctx, goal, start, rng, 0.5 * ctx.resolution) is not None
     assert certified_escape(ctx, goal, start, rng, 0.5 * ctx.resolution, deadline=clock()) is None  # out of time
+    # as a start it searches until the budget runs out: out of time is a TIMEOUT, not an invalid start
+    assert rrt_connect(ctx, goal, start, RRTConnectSettings(time_budget_s=1e-9)).status is PlanStatus.TIMEOUT
+    _check_result(ctx, rrt_connect(ctx, goal, start, FAST, np.random.default_rng(0)), goal, start)
     inside = _box("inside", [0.92, 0.0, 0.1], [0.05, 0.05, 0.05])  # exactly colliding: no escape
     assert rrt_connect(PlanningContext(model, [inside], spheres=spheres), start, goal, FAST).status \
         is PlanStatus.INVALID_GOAL
@@ -325,7 +328,7 @@ def test_context_checks_shapes_and_limits(arm):
     result = rrt_connect(ctx, start, goal, FAST)
     _check_result(ctx, result, start, goal)
     assert np.all(result.path[:, 2] == 0.3)  # j3 is not planned
-    with pytest.raises(Exception, match="not planned"):
+    with pytest.raises(PrehensileError, match=r"not planned \(j3; planned: j1, j2\)"):
         rrt_connect(ctx, start, np.array([2.0, 0.5, 0.0]), FAST)
 
 

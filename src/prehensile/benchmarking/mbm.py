@@ -141,6 +141,29 @@ def path_collides_exactly(space, exact, path: np.ndarray, resolution: float) -> 
     return len(active) == 1 and not bool(exact.is_free(path[0]))
 
 
+def check_goal(model: RobotModel, problem: MBMProblem, joints: Sequence[str]) -> None:
+    """The request's goal must set every planned joint and no other joint.
+
+    Raises:
+        PrehensileError: naming the request file, the joints at fault and the planned ones.
+    """
+    request = problem.request
+    where = f"{request.source}: goal_constraints[0].joint_constraints"
+    if not request.goal:
+        raise PrehensileError(f"{where}: no joint goal (bench mbm plans to joint goals)")
+    planned = ", ".join(joints)
+    unknown = [j for j in request.goal if j not in model.joint_names]
+    if unknown:
+        raise PrehensileError(f"{where}: robot '{model.name}' has no joint {', '.join(unknown)} (planned: {planned})")
+    outside = [j for j in request.goal if j not in joints]
+    if outside:
+        raise PrehensileError(f"{where}: {', '.join(outside)} not in the planned group '{request.group}' "
+                              f"(planned: {planned})")
+    missing = [j for j in joints if j not in request.goal]
+    if missing:
+        raise PrehensileError(f"{where}: no goal for planned joint(s) {', '.join(missing)} (planned: {planned})")
+
+
 class PreparedProblem:
     """One problem prepared for planning: context, start and goal."""
 
@@ -149,10 +172,12 @@ class PreparedProblem:
         from prehensile.planning import PlanningContext
 
         self.problem = problem
+        joints = planned_joints(model, problem)
+        check_goal(model, problem, joints)
         self.q_start = problem.request.start_configuration(model)
         self.q_goal = problem.request.goal_configuration(model)
         T_world_base = problem.scene.robots[0].T_world_base if problem.scene.robots else None
-        self.ctx = PlanningContext(model, problem.scene.collision_obstacles(), joints=planned_joints(model, problem),
+        self.ctx = PlanningContext(model, problem.scene.collision_obstacles(), joints=joints,
                                    q_ref=self.q_start, T_world_base=T_world_base, spheres=spheres[0],
                                    cover=spheres[1], resolution=settings.resolution,
                                    certify_resolution=settings.certify_resolution)

@@ -51,6 +51,7 @@ from prehensile.model.robot_model import RobotModel
 from prehensile.planning.context import PlanningContext, motion_weights
 
 _TOLERANCE = 1e-6  # m taken off every coal distance (GJK converges to about this)
+_ESCAPE_BATCH = 64  # random escape directions drawn at a time
 _FAR = 0.05  # m: pairs whose enclosing balls are this far apart are not measured exactly
 _COVER_NEAR = 0.0  # m: pairs whose covering balls are apart are not measured exactly
 
@@ -358,7 +359,7 @@ def certify_path(ctx: PlanningContext, path: np.ndarray, resolution: float | Non
 
 
 def certified_escape(ctx: PlanningContext, q: np.ndarray, toward: np.ndarray, rng: np.random.Generator,
-                     clearance: float, reach: float = 0.3, attempts: int = 64, samples: int = 32,
+                     clearance: float, reach: float = 0.3, attempts: int | None = 64, samples: int = 32,
                      deadline: float = np.inf) -> np.ndarray | None:
     """A configuration the sphere model accepts, at least ``clearance`` (m) from the world,
     joined to q (dof,) by a straight segment certified on the exact geometry; None if there is none.
@@ -366,13 +367,35 @@ def certified_escape(ctx: PlanningContext, q: np.ndarray, toward: np.ndarray, rn
     For endpoints that only the conservative sphere model rejects, or holds in a pocket
     narrower than the resolution (a grasp in contact range of the object): planners start
     from the escape configuration instead. Directions (planned joints only): toward ``toward``
-    (dof,) first, then random ones from ``rng``; along each, the first of ``samples``
-    configurations up to ``reach`` m (workspace-weighted) within the limits, free and clear
-    enough is tried. No new direction is tried after ``deadline`` (s, :func:`~prehensile.clock.clock`).
+    (dof,) first, then random ones from ``rng``, ``attempts`` in all (None: until ``deadline``,
+    which must then be finite); along each, the first of ``samples`` configurations up to
+    ``reach`` m (workspace-weighted) within the limits, free and clear enough is tried. No new
+    direction is tried after ``deadline`` (s, :func:`~prehensile.clock.clock`).
     """
+    if attempts is None and not np.isfinite(deadline):
+        raise PrehensileError("certified_escape: attempts=None needs a finite deadline")
     idx, w = ctx.space.indices, ctx.space.weights
     if clock() >= deadline or not ctx.certifier.certify(q[None], ctx.certify_resolution).ok:
         return None
+    batch = _ESCAPE_BATCH if attempts is None else attempts
+    directions = np.vstack([toward[idx] - q[idx], rng.normal(size=(batch - 1, len(idx)))])
+    steps = reach * np.arange(1, samples + 1) / samples
+    while True:
+        for d in directions:
+            if clock() >= deadline:
+                return None
+            length = float(w @ np.abs(d))
+            if length <= 0.0:
+                continue
+            candidates = np.repeat(q[None], samples, axis=0)
+            candidates[:, idx] += steps[:, None] * (d / length)
+            good = np.flatnonzero(ctx.model.within_limits(candidates) & ctx.spheres.is_free(candidates)
+                                  & (ctx.spheres.clearance(candidates, clearance, self_pairs=False) >= clearance))
+            if len(good) and certify_path(ctx, np.stack([q, candidates[good[0]]])).ok:
+                return candidates[good[0]]
+        if attempts is not None:
+            return None
+        directions = rng.normal(size=(batch, len(idx)))
     directions = np.vstack([toward[idx] - q[idx], rng.normal(size=(attempts - 1, len(idx)))])
     steps = reach * np.arange(1, samples + 1) / samples
     for d in directions:

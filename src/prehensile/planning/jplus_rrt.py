@@ -61,8 +61,8 @@ class JPlusRRTSettings:
         certify: certify the path with the exact geometry before returning it.
         escape: a start within the limits that only the conservative balls reject leaves
             along a short straight motion certified on the exact geometry (as in
-            :class:`~prehensile.planning.rrt_connect.RRTConnectSettings`); the start itself
-            is then not extended.
+            :class:`~prehensile.planning.rrt_connect.RRTConnectSettings`), searched until the
+            budget runs out (TIMEOUT if none is found); the start itself is then not extended.
     """
 
     time_budget_s: float = 5.0
@@ -252,11 +252,12 @@ def _grow(ctx: PlanningContext, q_start: np.ndarray, goals, s: JPlusRRTSettings,
     q_start = np.array(ctx.model.check_configuration(q_start, "q_start"), dtype=float)
     counted = int(ctx.counters[0])
     valid, escape = bool(ctx.is_valid(q_start)), None
-    if not valid and s.escape and ctx.model.within_limits(q_start):
-        escape = certified_escape(ctx, q_start, q_start, rng, 0.5 * ctx.resolution,  # random directions
-                                  deadline=start_time + s.time_budget_s)
+    deadline = start_time + s.time_budget_s
+    if not valid and s.escape and ctx.model.within_limits(q_start):  # random directions until the deadline
+        escape = certified_escape(ctx, q_start, q_start, rng, 0.5 * ctx.resolution, attempts=None, deadline=deadline)
     if not valid and escape is None:
-        return _result(PlanStatus.INVALID_START, ctx, 0, 0, counted, start_time)
+        status = PlanStatus.TIMEOUT if clock() >= deadline else PlanStatus.INVALID_START
+        return _result(status, ctx, 0, 0, counted, start_time)
     tree = _Tree(q_start, goals.tools(q_start), s.max_nodes)
     if escape is not None:
         tree.add(escape, 0, goals.tools(escape))

@@ -90,7 +90,8 @@ class RRTConnectSettings:
             than half the resolution from the world, gets a short straight escape motion
             certified on the exact geometry (:func:`~prehensile.planning.certify.certified_escape`)
             as its first tree edge: the conservative balls of a grasp in contact range of the
-            object would otherwise make it unreachable.
+            object would otherwise make it unreachable. The start tries directions until the
+            budget runs out (TIMEOUT if none is found), each goal 64 (INVALID_GOAL if none).
     """
 
     time_budget_s: float = 1.0
@@ -340,11 +341,12 @@ class _Trees:
 
 
 def _endpoints(ctx: PlanningContext, qs: np.ndarray, toward: np.ndarray, settings: RRTConnectSettings,
-               rng: np.random.Generator, deadline: float) -> list[list | None]:
+               rng: np.random.Generator, deadline: float, persistent: int = 0) -> list[list | None]:
     """Per configuration of qs (k, dof): its tree nodes [(q, -1, flags)] plus, if it needs one,
-    its certified escape node [(escape, 0, _CHECKED)] (moving toward ``toward`` (k, dof), searched
-    until ``deadline`` (s, :func:`~prehensile.clock.clock`)); None if it is unusable (outside the
-    limits, or colliding for the balls without an escape)."""
+    its certified escape node [(escape, 0, _CHECKED)] (moving toward ``toward`` (k, dof); the
+    first ``persistent`` rows try directions until ``deadline`` (s, :func:`~prehensile.clock.clock`),
+    the others 64 directions or until then); None if it is unusable (outside the limits, or
+    colliding for the balls without an escape)."""
     inside = ctx.model.within_limits(qs) & ctx.static_free(qs)  # no escape from a static contact
     free, near = ctx.spheres.screen(qs, 0.5 * ctx.resolution)
     valid, tight = inside & free, inside & near
@@ -352,7 +354,9 @@ def _endpoints(ctx: PlanningContext, qs: np.ndarray, toward: np.ndarray, setting
     for i, q in enumerate(qs):
         escape = None
         if settings.escape and inside[i] and (tight[i] or not valid[i]):
-            escape = certified_escape(ctx, q, toward[i], rng, 0.5 * ctx.resolution, deadline=deadline)
+            attempts = None if i < persistent and np.isfinite(deadline) else 64
+            escape = certified_escape(ctx, q, toward[i], rng, 0.5 * ctx.resolution, attempts=attempts,
+                                      deadline=deadline)
         if not valid[i] and escape is None:
             out.append(None)
             continue
@@ -406,9 +410,11 @@ class RRTConnectSearch:
             raise PrehensileError(f"rrt_connect: q_goal must be ({model.dof},) or (k, {model.dof}), got {goals.shape}")
         goals = goals.reshape(-1, model.dof)
         fixed = space.fixed
-        if len(fixed) and (np.abs(goals[:, fixed] - self.start[fixed]) > 1e-9).any():
+        differ = fixed[(np.abs(goals[:, fixed] - self.start[fixed]) > 1e-9).any(axis=0)]
+        if len(differ):
             raise PrehensileError("rrt_connect: goal and start differ in joints that are not planned "
-                                  f"({', '.join(model.joint_names[i] for i in fixed)})")
+                                  f"({', '.join(model.joint_names[i] for i in differ)}; planned: "
+                                  f"{', '.join(space.joint_names)})")
         first = len(self.goals)
         self.goals = np.concatenate((self.goals, goals))
         if self.trees is not None:
@@ -435,8 +441,9 @@ class RRTConnectSearch:
         qs = np.concatenate((self.start[None], self.goals))
         toward = np.empty_like(qs)  # the start escapes toward the first goal, goals toward the start
         toward[0], toward[1:] = self.goals[0] if len(self.goals) else self.start, self.start
-        start, *goal_nodes = _endpoints(self.context, qs, toward, self.settings, self.rng, deadline)
-        self.start_status = PlanStatus.INVALID_START if start is None else None
+        start, *goal_nodes = _endpoints(self.context, qs, toward, self.settings, self.rng, deadline, persistent=1)
+        # a start cut off by the deadline (no escape found yet) may find one in a later solve
+        self.start_status = PlanStatus.INVALID_START if start is None and clock() < deadline else None
         if start is not None:
             self.trees = _Trees(start, min(1024, self.settings.max_nodes), self.context.space)
             self.escapes = len(start) - 1
@@ -499,8 +506,8 @@ class RRTConnectSearch:
             begun = clock()
             if self.trees is None and self.start_status is None:
                 self._build_trees(deadline)
-            if self.trees is None or not self.goal_row:
-                status = self.start_status or PlanStatus.INVALID_GOAL
+            if self.trees is None or not self.goal_row:  # an escape search may have run out of time
+                status = self.start_status or (PlanStatus.TIMEOUT if clock() >= deadline else PlanStatus.INVALID_GOAL)
                 if report is None:
                     return PlanResult(status, empty, PlanStats(plan_time_s=clock() - t0))
                 break
