@@ -231,3 +231,10 @@ def test_bad_obstacles_are_errors_naming_them(obstacles, message):
     for checker in (ExactChecker, SphereChecker):
         with pytest.raises(PrehensileError, match=message):
             checker(_arm(), obstacles)
+
+
+def test_single_configuration_queries_reject_a_batch():
+    checker = ExactChecker(_arm(), [])
+    for query in (checker.collisions, checker.closest_points, checker.self_contacts):
+        with pytest.raises(PrehensileError, match=r"expected one configuration \(2,\)"):
+            query(np.zeros((3, 2)))

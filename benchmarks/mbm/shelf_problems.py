@@ -35,7 +35,8 @@ def shelf(table: np.ndarray, yaw: float) -> list[Obstacle]:
     """The boxes around the table centre (3,) (m), turned by ``yaw`` (rad) about the world z-axis."""
     c, s = np.cos(yaw), np.sin(yaw)
     R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-    return [Obstacle(name, Box(size), make_pose(R, table + R @ np.array(offset))) for name, (offset, size) in BOXES.items()]
+    return [Obstacle(name, Box(size), make_pose(R, table + R @ np.array(offset)))
+            for name, (offset, size) in BOXES.items()]
 
 
 def problem(model, group: str, ctx: PlanningContext, rng: np.random.Generator, tries: int = 2000):

@@ -16,6 +16,7 @@ import numpy as np
 
 from prehensile.collision.acm import allowed_collision_matrix
 from prehensile.collision.world import Obstacle, check_obstacles
+from prehensile.errors import PrehensileError
 from prehensile.kinematics.forward import forward_kinematics
 from prehensile.model.geometry import Box, Capsule, Cylinder, Mesh, Shape, Sphere
 from prehensile.model.robot_model import RobotModel
@@ -87,7 +88,7 @@ def coal_transform(T: np.ndarray):
 
 
 _SLACK = 1e-5  # m: bounds this far apart may still hold geometries that coal finds touching
-_EXACT, _BOUND = 0, 1  # a placed geometry is (exact, convex bound, transform)
+_EXACT, _BOUND, _POSE = 0, 1, 2  # a placed geometry: (exact, convex bound, coal transform)
 
 
 def enclosing_ball(shape: Shape, T: np.ndarray) -> tuple[np.ndarray, float]:
@@ -121,8 +122,8 @@ class ExactChecker:
     """Exact robot-vs-world and self-collision checks of one robot.
 
     Every query first compares bounding balls (:func:`enclosing_ball`), then the convex hulls
-    of meshes, and asks coal about a mesh only where both meet: the
-    answers are those of testing every pair on the exact geometry.
+    of meshes, and asks coal about a mesh only where both meet: the answers are those of
+    testing every pair on the exact geometry.
 
     Args:
         model: the robot; every collision geometry of every link is used.
@@ -169,6 +170,13 @@ class ExactChecker:
         """Link poses (B, L, 4, 4) of the configurations q (*batch, dof), checked."""
         poses = forward_kinematics(self.model, self.model.check_configuration(q), self.T_world_base)
         return poses.reshape(-1, self.model.n_links, 4, 4)
+
+    def _one(self, q: np.ndarray, what: str) -> np.ndarray:
+        """Link poses (1, L, 4, 4) of one configuration q (dof,); PrehensileError otherwise."""
+        q = self.model.check_configuration(q)
+        if q.shape != (self.model.dof,):
+            raise PrehensileError(f"ExactChecker.{what}: expected one configuration ({self.model.dof},), got {q.shape}")
+        return self._poses(q)
 
     def _gaps(self, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Lower bounds (m) on the distance of every world pair (B, W) and self pair (B, S) of
@@ -219,10 +227,10 @@ class ExactChecker:
     def _collide(self, a, b, request) -> tuple[bool, float]:
         """(whether the placed geometries a and b touch, penetration depth (m) if ``request`` asks for contacts)."""
         if (a[_BOUND] is not a[_EXACT] or b[_BOUND] is not b[_EXACT]) and not coal.collide(
-                a[_BOUND], a[2], b[_BOUND], b[2], self._bound_request, coal.CollisionResult()):
+                a[_BOUND], a[_POSE], b[_BOUND], b[_POSE], self._bound_request, coal.CollisionResult()):
             return False, 0.0
         result = coal.CollisionResult()
-        hit = coal.collide(a[0], a[2], b[0], b[2], request, result) > 0
+        hit = coal.collide(a[_EXACT], a[_POSE], b[_EXACT], b[_POSE], request, result) > 0
         depth = 0.0
         if hit and request.enable_contact:
             depth = max((abs(c.penetration_depth) for c in result.getContacts()), default=0.0)
@@ -242,7 +250,7 @@ class ExactChecker:
 
         ``other`` is an obstacle name or a link name; each pair of geometries reports once.
         """
-        poses = self._poses(q)
+        poses = self._one(q, "collisions")
         world, own = self._gaps(poses)
         out: list[tuple[str, str, float]] = []
         for link, other, a, b in self._candidates(poses[0], world[0], own[0], _SLACK):
@@ -254,7 +262,7 @@ class ExactChecker:
     def _distance(self, a, b, which: int = _EXACT) -> float:
         """Distance (m) of the placed geometries a and b: exact, or of their convex bounds (``_BOUND``)."""
         result = coal.DistanceResult()
-        return float(coal.distance(a[which], a[2], b[which], b[2], self._distance_request, result))
+        return float(coal.distance(a[which], a[_POSE], b[which], b[_POSE], self._distance_request, result))
 
     def min_distance(self, q: np.ndarray) -> np.ndarray:
         """(*batch,) smallest distance (m) over all checked pairs; negative when penetrating
@@ -279,15 +287,17 @@ class ExactChecker:
             One :class:`ClosestPair` per (link with geometry, obstacle) within ``max_distance``,
             in link then obstacle order.
         """
-        poses = self._poses(q)
+        poses = self._one(q, "closest_points")
         world, _ = self._gaps(poses)
         best: dict[tuple[int, int], ClosestPair] = {}
         within = max_distance + _SLACK
         for link, o, part, other in self._world_candidates(self._placer(poses[0]), world[0], within):
-            if np.isfinite(within) and part[_BOUND] is not part[_EXACT] and self._distance(part, other, _BOUND) > within:
+            hull_only = part[_BOUND] is not part[_EXACT]
+            if np.isfinite(within) and hull_only and self._distance(part, other, _BOUND) > within:
                 continue
             result = coal.DistanceResult()
-            d = float(coal.distance(part[0], part[2], other[0], other[2], self._distance_request, result))
+            d = float(coal.distance(part[_EXACT], part[_POSE], other[_EXACT], other[_POSE], self._distance_request,
+                                    result))
             if d <= max_distance and ((link, o) not in best or d < best[link, o].distance):
                 best[link, o] = ClosestPair(self.model.link_names[link], self._obstacles[o][0], d,
                                             np.array(result.getNearestPoint1(), dtype=float),
@@ -297,7 +307,7 @@ class ExactChecker:
     def self_contacts(self, q: np.ndarray) -> np.ndarray:
         """(L, L) bool for one configuration q (dof,): which link pairs touch, over the pairs
         the checker's ACM does not skip (used by :func:`~prehensile.collision.acm.compute_acm`)."""
-        poses = self._poses(q)
+        poses = self._one(q, "self_contacts")
         _, own = self._gaps(poses)
         contact = np.zeros((self.model.n_links, self.model.n_links), dtype=bool)
         for i, j, a, b in self._self_candidates(self._placer(poses[0]), own[0], _SLACK):

@@ -122,7 +122,8 @@ class ExactCertifier:
         boxes = []  # per obstacle: world AABB (min xyz, max xyz)
         for o in obstacles:
             exact, T = coal_geometry(o.shape), np.asarray(o.T_world_shape, dtype=float)
-            self._obstacles.append((coal_transform(T), exact, convex_bound(o.shape, exact), not isinstance(o.shape, Mesh)))
+            self._obstacles.append((coal_transform(T), exact, convex_bound(o.shape, exact),
+                                    not isinstance(o.shape, Mesh)))
             exact.computeLocalAABB()
             lo, hi = np.asarray(exact.aabb_local.min_), np.asarray(exact.aabb_local.max_)
             center, half = T[:3, :3] @ (0.5 * (lo + hi)) + T[:3, 3], np.abs(T[:3, :3]) @ (0.5 * (hi - lo))
