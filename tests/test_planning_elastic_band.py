@@ -110,8 +110,8 @@ class _Rejecting:
         self.model, self.space, self.exact, self.is_valid = ctx.model, ctx.space, ctx.exact, ctx.is_valid
         self.spheres, self.sphere_model = ctx.spheres, ctx.sphere_model
 
-    def check_motion(self, qa, qb) -> bool:
-        return False
+    def check_motions(self, qa, qb) -> np.ndarray:
+        return np.zeros(len(qa), dtype=bool)
 
 
 def test_rejected_updates_leave_the_path_unchanged(panda):

@@ -171,6 +171,19 @@ def test_invalid_start_and_goal(arm):
         rrt_connect(ctx, free, np.zeros(4), settings)
 
 
+def test_batched_motion_checks_match_single_ones(arm):
+    model, spheres = arm
+    ctx = PlanningContext(model, [_box("block", [0.6, 0.0, 0.1], [0.1, 0.1, 0.3])], spheres=spheres)
+    rng = np.random.default_rng(5)
+    qa, qb = model.random_configurations(rng, 40), model.random_configurations(rng, 40)
+    qb[:5] = qa[:5] + 0.05 * rng.normal(size=(5, 3))  # short segments, mostly free
+    qb[5, 1] = 2.9  # outside the limits
+    batch = ctx.check_motions(qa, qb)
+    assert np.array_equal(batch, [ctx.check_motion(a, b) for a, b in zip(qa, qb)])
+    assert 0 < batch.sum() < len(batch) and not batch[5]
+    with pytest.raises(PrehensileError, match=r"check_motions: expected qa and qb of one shape"):
+        ctx.check_motions(qa, qb[:3])
+
 def test_pairs_the_planned_joints_do_not_move_are_tested_exactly_once():
     """NAO's biceps' balls reach into the torso's (the meshes are 10 mm apart). Planning the left
     arm, the right arm and the torso are one static pair, tested on the meshes; the left arm's

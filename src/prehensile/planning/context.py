@@ -317,6 +317,8 @@ class PlanningContext:
         """(*batch,) bool for q (*batch, dof): no pair of :attr:`static_pairs` touches on the exact
         geometry (remembered per value of the joints not planned)."""
         q = self.model.check_configuration(q)
+        if not len(self.static_pairs):
+            return np.ones(q.shape[:-1], dtype=bool)
         flat = q.reshape(-1, self.model.dof)
         return np.array([self._static_free_at(row) for row in flat], dtype=bool).reshape(q.shape[:-1])
 
@@ -453,16 +455,43 @@ class PlanningContext:
         qb = self.model.check_configuration(qb, "qb")
         if qa.shape != (self.model.dof,) or qb.shape != (self.model.dof,):
             raise PrehensileError(f"check_motion: expected two configurations ({self.model.dof},)")
-        if np.any(np.abs(qa[self.space.fixed] - qb[self.space.fixed]) > 1e-9):
-            raise PrehensileError("check_motion: qa and qb differ in joints the context does not plan")
+        res = self._motion_resolution(qa, qb, resolution)
         if self.spheres.static_hit or not (self.model.within_limits(qa) and self.model.within_limits(qb)
                                            and self._static_free_at(qa)):
             return False
+        return kernels.motion_free(qa, qb, res, self.spheres.data, self.scratch, self.motion_arrays(res),
+                                   self.counters, kernels.NO_LIMIT, 2) == kernels.FREE
+
+    def check_motions(self, qa: np.ndarray, qb: np.ndarray, resolution: float | None = None) -> np.ndarray:
+        """(n,) bool: :meth:`check_motion` of each segment qa[k] -> qb[k] (full configurations
+        (n, dof) each), in one compiled call."""
+        from prehensile.planning import kernels
+
+        qa = self.model.check_configuration(qa, "qa")
+        qb = self.model.check_configuration(qb, "qb")
+        if qa.ndim != 2 or qa.shape != qb.shape:
+            raise PrehensileError(f"check_motions: expected qa and qb of one shape (n, {self.model.dof}), "
+                                  f"got {qa.shape} and {qb.shape}")
+        res = self._motion_resolution(qa, qb, resolution)
+        out = np.zeros(len(qa), dtype=bool)
+        if self.spheres.static_hit:
+            return out
+        rows = np.flatnonzero(self.model.within_limits(np.stack((qa, qb))).all(axis=0) & self.static_free(qa))
+        free = np.zeros(len(rows), dtype=bool)
+        kernels.motions_free(qa[rows], qb[rows], free, res, self.spheres.data, self.scratch, self.motion_arrays(res),
+                             self.counters)
+        out[rows] = free
+        return out
+
+    def _motion_resolution(self, qa: np.ndarray, qb: np.ndarray, resolution: float | None) -> float:
+        """The resolution (m) of a motion check between qa and qb (checked configurations of one
+        shape), which must agree in the joints not planned."""
+        if np.any(np.abs(qa[..., self.space.fixed] - qb[..., self.space.fixed]) > 1e-9):
+            raise PrehensileError("check_motion: qa and qb differ in joints the context does not plan")
         res = self.resolution if resolution is None else float(resolution)
         if not res > 0:
             raise PrehensileError(f"check_motion: resolution must be positive (m), got {resolution}")
-        return kernels.motion_free(qa, qb, res, self.spheres.data, self.scratch, self.motion_arrays(res),
-                                   self.counters, kernels.NO_LIMIT, 2) == kernels.FREE
+        return res
 
     def warm_up(self, certify: bool) -> None:
         """Build, if ``certify``, the exact certifier now (once per context; about 0.5 s for a

@@ -25,9 +25,10 @@ Choices the thesis leaves open:
 * Every (link, obstacle) pair closer than ``d_min`` pushes, not only the closest one, so the
   band does not oscillate between two near links (the thesis ignores ties).
 * J⁺ is the damped least-squares inverse ``Jᵀ (J Jᵀ + λ² I)⁻¹``, bounded near singularities.
-* Waypoints are updated in order (Gauss-Seidel), each with its current neighbours. An update
-  is kept only if both adjacent edges pass ``ctx.check_motion`` (which tests the new waypoint's
-  validity too); otherwise the waypoint stays. So a valid path stays valid, and the
+* Waypoints are updated odd ones first, then even ones (red-black Gauss-Seidel): each update
+  sees its neighbours' current positions, and each half is checked in one compiled call. An
+  update is kept only if both adjacent edges pass ``ctx.check_motions`` (which tests the new
+  waypoint's validity too); otherwise the waypoint stays. So a valid path stays valid, and the
   start and goal never move.
 * The stopping rule bounds the largest step of an iteration, not the sum over waypoints
   (Σ‖f(i)‖ < δ in the thesis), which would depend on how finely the path is subdivided.
@@ -96,12 +97,13 @@ def _subdivide(ctx, path: np.ndarray, spacing: float) -> np.ndarray:
 
 
 def internal_force(prev: np.ndarray, current: np.ndarray, following: np.ndarray) -> np.ndarray:
-    """Tightening force (n,): the sum of unit vectors from ``current`` to its neighbours (n,)."""
+    """Tightening force (..., n): the sum of unit vectors from ``current`` to its neighbours
+    (..., n each)."""
     force = np.zeros_like(current)
     for other in (prev, following):
-        length = np.linalg.norm(other - current)
-        if length > 0:
-            force += (other - current) / length
+        offset = other - current
+        length = np.linalg.norm(offset, axis=-1, keepdims=True)
+        force += np.divide(offset, length, out=np.zeros_like(offset), where=length > 0)
     return force
 
 
@@ -166,20 +168,21 @@ def elastic_band(ctx, path: np.ndarray, settings: ElasticBandSettings = ElasticB
     for iteration in range(settings.max_iterations):
         largest, accepted = 0.0, 0
         pushed = _near_obstacles(ctx, path, settings.d_min) if settings.k_ext > 0 else np.zeros(len(path), bool)
-        for i in range(1, len(band) - 1):
-            step = settings.k_int * internal_force(band[i - 1], band[i], band[i + 1])
-            if pushed[i]:
-                step += settings.k_ext * external_force(ctx, path[i], settings.d_min, settings.damping)
-            size = float(np.linalg.norm(step))
-            largest = max(largest, size)
-            if size == 0:
-                continue
-            candidate = np.clip(band[i] + step, space.lower, space.upper)
-            q = path[i].copy()
-            q[space.indices] = candidate
-            if ctx.check_motion(path[i - 1], q) and ctx.check_motion(q, path[i + 1]):  # checks q's validity too
-                band[i], path[i] = candidate, q
-                accepted += 1
+        for first in (1, 2):  # odd waypoints, then even ones: neither half moves the other's neighbours
+            rows = np.arange(first, len(band) - 1, 2)
+            step = settings.k_int * internal_force(band[rows - 1], band[rows], band[rows + 1])
+            for k in np.flatnonzero(pushed[rows]):
+                step[k] += settings.k_ext * external_force(ctx, path[rows[k]], settings.d_min, settings.damping)
+            size = np.linalg.norm(step, axis=1)
+            largest = max(largest, float(size.max(initial=0.0)))
+            rows, step = rows[size > 0], step[size > 0]
+            q = path[rows].copy()
+            q[:, space.indices] = np.clip(band[rows] + step, space.lower, space.upper)
+            ends = ctx.check_motions(np.concatenate((path[rows - 1], q)), np.concatenate((q, path[rows + 1])))
+            moved = ends[:len(rows)] & ends[len(rows):]
+            path[rows[moved]] = q[moved]
+            band[rows[moved]] = q[moved][:, space.indices]
+            accepted += int(moved.sum())
         log.debug("elastic band iteration %d: largest step %.4g, %d waypoints moved", iteration, largest, accepted)
         if largest < settings.tolerance or accepted == 0:
             break

@@ -203,3 +203,11 @@ def motion_free(qa, qb, res, checker, scratch, motion, counters, budget, new_end
             queue[tail % size, 0], queue[tail % size, 1] = mid + r, b
             tail += 1
     return FREE
+
+
+@njit(cache=True, _nrt=False)
+def motions_free(qa, qb, out, res, checker, scratch, motion, counters):
+    """out[k] = True if the segment qa[k] -> qb[k] (rows of (n, dof), both ends new) is FREE
+    (:func:`motion_free`, decided to the end)."""
+    for k in range(qa.shape[0]):
+        out[k] = motion_free(qa[k], qb[k], res, checker, scratch, motion, counters, NO_LIMIT, 2) == FREE
