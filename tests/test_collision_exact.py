@@ -238,3 +238,23 @@ def test_single_configuration_queries_reject_a_batch():
     for query in (checker.collisions, checker.closest_points, checker.self_contacts):
         with pytest.raises(PrehensileError, match=r"expected one configuration \(2,\)"):
             query(np.zeros((3, 2)))
+
+
+@pytest.mark.parametrize("shape", [Box((0.3, 0.2, 0.1)), Sphere(0.1), Cylinder(0.1, 0.3), Capsule(0.05, 0.3)],
+                         ids=lambda s: type(s).__name__)
+def test_point_distance_matches_coal(shape):
+    import coal
+
+    from prehensile.collision.exact import coal_geometry, coal_transform, point_distance
+    from scipy.spatial.transform import Rotation
+
+    T = make_pose(Rotation.from_rotvec([0.3, -0.5, 0.8]).as_matrix(), [0.2, -0.1, 0.4])
+    points = np.random.default_rng(2).normal([0.2, -0.1, 0.4], 0.25, size=(50, 3))
+    ours = point_distance(shape, T, points)
+    point = coal.Sphere(1e-9)
+    theirs = [coal.distance(coal_geometry(shape), coal_transform(T), point, coal_transform(make_pose(position=p)),
+                            coal.DistanceRequest(), coal.DistanceResult()) for p in points]
+    outside = ours > 1e-6  # inside, primitives differ in sign conventions; a lower bound only needs <= 0
+    assert outside.sum() > 25
+    np.testing.assert_allclose(ours[outside], np.array(theirs)[outside], atol=1e-6)
+    assert np.all(ours[~outside] <= 1e-6) and np.all(np.array(theirs)[~outside] <= 1e-6)

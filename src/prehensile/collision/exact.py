@@ -20,6 +20,7 @@ from prehensile.errors import PrehensileError
 from prehensile.kinematics.forward import forward_kinematics
 from prehensile.model.geometry import Box, Capsule, Cylinder, Mesh, Shape, Sphere
 from prehensile.model.robot_model import RobotModel
+from prehensile.spatial.transforms import make_pose
 
 
 def coal_geometry(shape: Shape):
@@ -112,6 +113,26 @@ def enclosing_ball(shape: Shape, T: np.ndarray) -> tuple[np.ndarray, float]:
     return T[:3, 3].copy(), radius
 
 
+def point_distance(shape: Shape, T: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Distances (...,) (m; negative inside a sphere or capsule, 0 inside a box or cylinder) of
+    world points (..., 3) to the primitive ``shape`` (not a mesh) at the pose T (4, 4)."""
+    T = np.asarray(T, dtype=float)
+    local = (points - T[:3, 3]) @ T[:3, :3]
+    if isinstance(shape, Box):
+        return np.linalg.norm(np.maximum(np.abs(local) - 0.5 * np.asarray(shape.size, dtype=float), 0.0), axis=-1)
+    if isinstance(shape, Sphere):
+        return np.linalg.norm(local, axis=-1) - shape.radius
+    half = 0.5 * shape.length
+    if isinstance(shape, Cylinder):
+        radial = np.maximum(np.linalg.norm(local[..., :2], axis=-1) - shape.radius, 0.0)
+        return np.hypot(radial, np.maximum(np.abs(local[..., 2]) - half, 0.0))
+    if isinstance(shape, Capsule):
+        axis = np.zeros_like(local)
+        axis[..., 2] = np.clip(local[..., 2], -half, half)
+        return np.linalg.norm(local - axis, axis=-1) - shape.radius
+    raise TypeError(f"unsupported shape {type(shape).__name__}; valid: Box, Sphere, Cylinder, Capsule")
+
+
 def _enclosing_balls(placed: Sequence[tuple[Shape, np.ndarray]]) -> tuple[np.ndarray, np.ndarray]:
     """Centres (N, 3) and radii (N,) (m) of :func:`enclosing_ball` of each (shape, pose (4, 4))."""
     balls = [enclosing_ball(shape, T) for shape, T in placed]
@@ -140,9 +161,13 @@ class ExactChecker:
         self.acm = allowed_collision_matrix(model) if acm is None else np.asarray(acm, dtype=bool)
         self.obstacles = check_obstacles(obstacles)
         self._obstacles = []  # (name, exact, convex bound, transform)
+        self._obstacle_bounds = []  # (primitive, pose): the obstacle, or the ball enclosing a mesh
         for o in self.obstacles:
             exact = coal_geometry(o.shape)
             self._obstacles.append((o.name, exact, convex_bound(o.shape, exact), coal_transform(o.T_world_shape)))
+            center, radius = enclosing_ball(o.shape, o.T_world_shape)
+            self._obstacle_bounds.append((Sphere(radius), make_pose(position=center)) if isinstance(o.shape, Mesh)
+                                         else (o.shape, np.asarray(o.T_world_shape, dtype=float)))
         self._parts = []  # (link, exact, convex bound, T_link_geom)
         for link, geoms in enumerate(model.collisions):
             for g in geoms:
@@ -153,8 +178,6 @@ class ExactChecker:
         self_pairs = [(i, j) for a, i in enumerate(links) for j in links[a + 1:] if not self.acm[i, j]]
         self._part_link = np.array([p[0] for p in self._parts], dtype=np.int64)
         self._part_center, self._part_radius = _enclosing_balls([(g.shape, g.T_link_geom) for g in geometries])
-        self._obstacle_center, self._obstacle_radius = _enclosing_balls([(o.shape, o.T_world_shape)
-                                                                         for o in self.obstacles])
         first = np.cumsum([0] + [len(g) for g in model.collisions])
         self._world_pairs = np.array([(p, o) for i in links for p in range(first[i], first[i + 1])
                                       for o in range(len(self._obstacles))], dtype=np.int64).reshape(-1, 2)
@@ -180,12 +203,15 @@ class ExactChecker:
 
     def _gaps(self, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Lower bounds (m) on the distance of every world pair (B, W) and self pair (B, S) of
-        geometries, from their bounding balls, for link poses (B, L, 4, 4)."""
+        geometries, from their enclosing balls (against the obstacles' own primitives,
+        :func:`point_distance`, or a mesh's enclosing ball), for link poses (B, L, 4, 4)."""
         frames = poses[:, self._part_link]
         centers = np.einsum("bgij,gj->bgi", frames[..., :3, :3], self._part_center) + frames[..., :3, 3]
         w, s = self._world_pairs, self._part_pairs
-        world = (np.linalg.norm(centers[:, w[:, 0]] - self._obstacle_center[w[:, 1]], axis=-1)
-                 - self._part_radius[w[:, 0]] - self._obstacle_radius[w[:, 1]])
+        to_obstacle = np.zeros(centers.shape[:2] + (len(self.obstacles),))
+        for k, (shape, T) in enumerate(self._obstacle_bounds):
+            to_obstacle[..., k] = point_distance(shape, T, centers)
+        world = to_obstacle[:, w[:, 0], w[:, 1]] - self._part_radius[w[:, 0]]
         own = (np.linalg.norm(centers[:, s[:, 0]] - centers[:, s[:, 1]], axis=-1)
                - self._part_radius[s[:, 0]] - self._part_radius[s[:, 1]])
         return world, own
