@@ -201,20 +201,31 @@ class ExactChecker:
             raise PrehensileError(f"ExactChecker.{what}: expected one configuration ({self.model.dof},), got {q.shape}")
         return self._poses(q)
 
-    def _gaps(self, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Lower bounds (m) on the distance of every world pair (B, W) and self pair (B, S) of
-        geometries, from their enclosing balls (against the obstacles' own primitives,
-        :func:`point_distance`, or a mesh's enclosing ball), for link poses (B, L, 4, 4)."""
+    def _centers(self, poses: np.ndarray) -> np.ndarray:
+        """World centres (B, G, 3) of the geometries' enclosing balls for link poses (B, L, 4, 4)."""
         frames = poses[:, self._part_link]
-        centers = np.einsum("bgij,gj->bgi", frames[..., :3, :3], self._part_center) + frames[..., :3, 3]
-        w, s = self._world_pairs, self._part_pairs
+        return np.einsum("bgij,gj->bgi", frames[..., :3, :3], self._part_center) + frames[..., :3, 3]
+
+    def _world_gaps(self, centers: np.ndarray) -> np.ndarray:
+        """Lower bounds (B, W) (m) on the distance of every world pair, from the geometries'
+        enclosing balls (centres (B, G, 3)) against the obstacles' own primitives
+        (:func:`point_distance`) or a mesh's enclosing ball."""
         to_obstacle = np.zeros(centers.shape[:2] + (len(self.obstacles),))
         for k, (shape, T) in enumerate(self._obstacle_bounds):
             to_obstacle[..., k] = point_distance(shape, T, centers)
-        world = to_obstacle[:, w[:, 0], w[:, 1]] - self._part_radius[w[:, 0]]
-        own = (np.linalg.norm(centers[:, s[:, 0]] - centers[:, s[:, 1]], axis=-1)
-               - self._part_radius[s[:, 0]] - self._part_radius[s[:, 1]])
-        return world, own
+        w = self._world_pairs
+        return to_obstacle[:, w[:, 0], w[:, 1]] - self._part_radius[w[:, 0]]
+
+    def _self_gaps(self, centers: np.ndarray) -> np.ndarray:
+        """Lower bounds (B, S) (m) on the distance of every self pair, from the enclosing balls."""
+        s = self._part_pairs
+        return (np.linalg.norm(centers[:, s[:, 0]] - centers[:, s[:, 1]], axis=-1)
+                - self._part_radius[s[:, 0]] - self._part_radius[s[:, 1]])
+
+    def _gaps(self, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(:meth:`_world_gaps`, :meth:`_self_gaps`) for link poses (B, L, 4, 4)."""
+        centers = self._centers(poses)
+        return self._world_gaps(centers), self._self_gaps(centers)
 
     def _placer(self, poses: np.ndarray):
         """part(g) -> (exact, convex bound, world transform) of geometry g for link poses
@@ -314,7 +325,7 @@ class ExactChecker:
             in link then obstacle order.
         """
         poses = self._one(q, "closest_points")
-        world, _ = self._gaps(poses)
+        world = self._world_gaps(self._centers(poses))
         best: dict[tuple[int, int], ClosestPair] = {}
         within = max_distance + _SLACK
         for link, o, part, other in self._world_candidates(self._placer(poses[0]), world[0], within):
@@ -334,7 +345,7 @@ class ExactChecker:
         """(L, L) bool for one configuration q (dof,): which link pairs touch, over the pairs
         the checker's ACM does not skip (used by :func:`~prehensile.collision.acm.compute_acm`)."""
         poses = self._one(q, "self_contacts")
-        _, own = self._gaps(poses)
+        own = self._self_gaps(self._centers(poses))
         contact = np.zeros((self.model.n_links, self.model.n_links), dtype=bool)
         for i, j, a, b in self._self_candidates(self._placer(poses[0]), own[0], _SLACK):
             if not contact[i, j] and self._collide(a, b, self._request)[0]:
