@@ -397,18 +397,3 @@ def certified_escape(ctx: PlanningContext, q: np.ndarray, toward: np.ndarray, rn
         if attempts is not None:
             return None
         directions = rng.normal(size=(batch, len(idx)))
-    directions = np.vstack([toward[idx] - q[idx], rng.normal(size=(attempts - 1, len(idx)))])
-    steps = reach * np.arange(1, samples + 1) / samples
-    for d in directions:
-        if clock() >= deadline:
-            return None
-        length = float(w @ np.abs(d))
-        if length <= 0.0:
-            continue
-        candidates = np.repeat(q[None], samples, axis=0)
-        candidates[:, idx] += steps[:, None] * (d / length)
-        good = np.flatnonzero(ctx.model.within_limits(candidates) & ctx.spheres.is_free(candidates)
-                              & (ctx.spheres.clearance(candidates, clearance, self_pairs=False) >= clearance))
-        if len(good) and certify_path(ctx, np.stack([q, candidates[good[0]]])).ok:
-            return candidates[good[0]]
-    return None
