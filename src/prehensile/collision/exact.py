@@ -122,13 +122,12 @@ def point_distance(shape: Shape, T: np.ndarray, points: np.ndarray) -> np.ndarra
         return np.linalg.norm(np.maximum(np.abs(local) - 0.5 * np.asarray(shape.size, dtype=float), 0.0), axis=-1)
     if isinstance(shape, Sphere):
         return np.linalg.norm(local, axis=-1) - shape.radius
-    half = 0.5 * shape.length
     if isinstance(shape, Cylinder):
         radial = np.maximum(np.linalg.norm(local[..., :2], axis=-1) - shape.radius, 0.0)
-        return np.hypot(radial, np.maximum(np.abs(local[..., 2]) - half, 0.0))
+        return np.hypot(radial, np.maximum(np.abs(local[..., 2]) - 0.5 * shape.length, 0.0))
     if isinstance(shape, Capsule):
         axis = np.zeros_like(local)
-        axis[..., 2] = np.clip(local[..., 2], -half, half)
+        axis[..., 2] = np.clip(local[..., 2], -0.5 * shape.length, 0.5 * shape.length)
         return np.linalg.norm(local - axis, axis=-1) - shape.radius
     raise TypeError(f"unsupported shape {type(shape).__name__}; valid: Box, Sphere, Cylinder, Capsule")
 

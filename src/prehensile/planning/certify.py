@@ -51,7 +51,7 @@ from prehensile.model.robot_model import RobotModel
 from prehensile.planning.context import PlanningContext, motion_weights
 
 _TOLERANCE = 1e-6  # m taken off every coal distance (GJK converges to about this)
-_ESCAPE_BATCH = 64  # random escape directions drawn at a time
+ESCAPE_ATTEMPTS = 64  # escape directions tried by default (drawn this many at a time until a deadline)
 _FAR = 0.05  # m: pairs whose enclosing balls are this far apart are not measured exactly
 _COVER_NEAR = 0.0  # m: pairs whose covering balls are apart are not measured exactly
 
@@ -360,8 +360,8 @@ def certify_path(ctx: PlanningContext, path: np.ndarray, resolution: float | Non
 
 
 def certified_escape(ctx: PlanningContext, q: np.ndarray, toward: np.ndarray, rng: np.random.Generator,
-                     clearance: float, reach: float = 0.3, attempts: int | None = 64, samples: int = 32,
-                     deadline: float = np.inf) -> np.ndarray | None:
+                     clearance: float, reach: float = 0.3, attempts: int | None = ESCAPE_ATTEMPTS,
+                     samples: int = 32, deadline: float = np.inf) -> np.ndarray | None:
     """A configuration the sphere model accepts, at least ``clearance`` (m) from the world,
     joined to q (dof,) by a straight segment certified on the exact geometry; None if there is none.
 
@@ -378,7 +378,7 @@ def certified_escape(ctx: PlanningContext, q: np.ndarray, toward: np.ndarray, rn
     idx, w = ctx.space.indices, ctx.space.weights
     if clock() >= deadline or not ctx.certifier.certify(q[None], ctx.certify_resolution).ok:
         return None
-    batch = _ESCAPE_BATCH if attempts is None else attempts
+    batch = ESCAPE_ATTEMPTS if attempts is None else attempts
     directions = np.vstack([toward[idx] - q[idx], rng.normal(size=(batch - 1, len(idx)))])
     steps = reach * np.arange(1, samples + 1) / samples
     while True:

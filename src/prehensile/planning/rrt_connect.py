@@ -44,7 +44,7 @@ from numba import njit
 
 from prehensile.clock import clock
 from prehensile.errors import PrehensileError
-from prehensile.planning.certify import CertifyReport, certified_escape, certify_path
+from prehensile.planning.certify import ESCAPE_ATTEMPTS, CertifyReport, certified_escape, certify_path
 from prehensile.planning.context import PlanningContext
 from prehensile.planning.cspace import ConfigurationSpace
 from prehensile.planning.kernels import (
@@ -345,8 +345,8 @@ def _endpoints(ctx: PlanningContext, qs: np.ndarray, toward: np.ndarray, setting
     """Per configuration of qs (k, dof): its tree nodes [(q, -1, flags)] plus, if it needs one,
     its certified escape node [(escape, 0, _CHECKED)] (moving toward ``toward`` (k, dof); the
     first ``persistent`` rows try directions until ``deadline`` (s, :func:`~prehensile.clock.clock`),
-    the others 64 directions or until then); None if it is unusable (outside the limits, or
-    colliding for the balls without an escape)."""
+    the others ``ESCAPE_ATTEMPTS`` directions or until then); None if it is unusable (outside
+    the limits, or colliding for the balls without an escape)."""
     inside = ctx.model.within_limits(qs) & ctx.static_free(qs)  # no escape from a static contact
     free, near = ctx.spheres.screen(qs, 0.5 * ctx.resolution)
     valid, tight = inside & free, inside & near
@@ -354,7 +354,7 @@ def _endpoints(ctx: PlanningContext, qs: np.ndarray, toward: np.ndarray, setting
     for i, q in enumerate(qs):
         escape = None
         if settings.escape and inside[i] and (tight[i] or not valid[i]):
-            attempts = None if i < persistent and np.isfinite(deadline) else 64
+            attempts = None if i < persistent and np.isfinite(deadline) else ESCAPE_ATTEMPTS
             escape = certified_escape(ctx, q, toward[i], rng, 0.5 * ctx.resolution, attempts=attempts,
                                       deadline=deadline)
         if not valid[i] and escape is None:
