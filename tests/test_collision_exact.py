@@ -258,3 +258,24 @@ def test_point_distance_matches_coal(shape):
     assert outside.sum() > 25
     np.testing.assert_allclose(ours[outside], np.array(theirs)[outside], atol=1e-6)
     assert np.all(ours[~outside] <= 1e-6) and np.all(np.array(theirs)[~outside] <= 1e-6)
+
+
+def test_robot_parts_are_prepared_once_per_model_and_enclose_their_geometry():
+    import gc
+    import weakref
+
+    from prehensile.collision.exact import robot_parts
+    from prehensile.planning.certify import ExactCertifier
+
+    model = _arm()
+    parts = robot_parts(model)
+    assert [p.link for p in parts] == [0, 0, 1, 2, 3]  # every geometry, in link order
+    checker = ExactChecker(model, [])
+    certifier = ExactCertifier(model, [], np.eye(4), allowed_collision_matrix(model))
+    assert checker._parts is parts and certifier._parts is parts
+    capsule = parts[-1]  # length 0.6 + 2 radii 0.05 along x, centred at x 0.4 of fore
+    assert np.allclose(capsule.center, [0.4, 0, 0]) and capsule.radius == pytest.approx(0.35)
+    released = weakref.ref(model)
+    del model, checker, certifier
+    gc.collect()
+    assert released() is None  # the cache does not keep a model alive

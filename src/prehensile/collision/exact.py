@@ -10,6 +10,7 @@ checker certifies paths; planners use :class:`~prehensile.collision.sphere_check
 from __future__ import annotations
 
 from typing import NamedTuple, Sequence
+from weakref import WeakKeyDictionary
 
 import coal
 import numpy as np
@@ -132,10 +133,45 @@ def point_distance(shape: Shape, T: np.ndarray, points: np.ndarray) -> np.ndarra
     raise TypeError(f"unsupported shape {type(shape).__name__}; valid: Box, Sphere, Cylinder, Capsule")
 
 
-def _enclosing_balls(placed: Sequence[tuple[Shape, np.ndarray]]) -> tuple[np.ndarray, np.ndarray]:
-    """Centres (N, 3) and radii (N,) (m) of :func:`enclosing_ball` of each (shape, pose (4, 4))."""
-    balls = [enclosing_ball(shape, T) for shape, T in placed]
-    return np.array([c for c, _ in balls]).reshape(-1, 3), np.array([r for _, r in balls])
+class RobotPart(NamedTuple):
+    """One collision geometry of a robot link, prepared for coal.
+
+    Attributes:
+        link: index of the link.
+        T_link_geom: (4, 4) pose of the geometry in the link frame.
+        exact: coal geometry of the shape (:func:`coal_geometry`).
+        bound: convex coal geometry containing it (:func:`convex_bound`).
+        convex: ``exact`` is convex (a primitive): ``bound`` is ``exact``.
+        center: (3,) centre of a ball containing the geometry, in the link frame (m).
+        radius: that ball's radius (m).
+    """
+
+    link: int
+    T_link_geom: np.ndarray
+    exact: object
+    bound: object
+    convex: bool
+    center: np.ndarray
+    radius: float
+
+
+_ROBOT_PARTS: WeakKeyDictionary = WeakKeyDictionary()
+
+
+def robot_parts(model: RobotModel) -> tuple[RobotPart, ...]:
+    """Every collision geometry of every link of ``model``, in link order, prepared once per
+    model (mesh BVHs and convex hulls take tens of ms for a Panda) and shared by the exact
+    checkers and certifiers of all its contexts."""
+    if model not in _ROBOT_PARTS:
+        parts = []
+        for link, geometries in enumerate(model.collisions):
+            for g in geometries:
+                exact, T = coal_geometry(g.shape), np.asarray(g.T_link_geom, dtype=float)
+                center, radius = enclosing_ball(g.shape, T)
+                parts.append(RobotPart(link, T, exact, convex_bound(g.shape, exact), not isinstance(g.shape, Mesh),
+                                       center, radius))
+        _ROBOT_PARTS[model] = tuple(parts)
+    return _ROBOT_PARTS[model]
 
 
 class ExactChecker:
@@ -167,16 +203,12 @@ class ExactChecker:
             center, radius = enclosing_ball(o.shape, o.T_world_shape)
             self._obstacle_bounds.append((Sphere(radius), make_pose(position=center)) if isinstance(o.shape, Mesh)
                                          else (o.shape, np.asarray(o.T_world_shape, dtype=float)))
-        self._parts = []  # (link, exact, convex bound, T_link_geom)
-        for link, geoms in enumerate(model.collisions):
-            for g in geoms:
-                exact = coal_geometry(g.shape)
-                self._parts.append((link, exact, convex_bound(g.shape, exact), np.asarray(g.T_link_geom, dtype=float)))
-        geometries = [g for geoms in model.collisions for g in geoms]
+        self._parts = robot_parts(model)
         links = [i for i, g in enumerate(model.collisions) if g]
         self_pairs = [(i, j) for a, i in enumerate(links) for j in links[a + 1:] if not self.acm[i, j]]
-        self._part_link = np.array([p[0] for p in self._parts], dtype=np.int64)
-        self._part_center, self._part_radius = _enclosing_balls([(g.shape, g.T_link_geom) for g in geometries])
+        self._part_link = np.array([p.link for p in self._parts], dtype=np.int64)
+        self._part_center = np.array([p.center for p in self._parts]).reshape(-1, 3)
+        self._part_radius = np.array([p.radius for p in self._parts])
         first = np.cumsum([0] + [len(g) for g in model.collisions])
         self._world_pairs = np.array([(p, o) for i in links for p in range(first[i], first[i + 1])
                                       for o in range(len(self._obstacles))], dtype=np.int64).reshape(-1, 2)
@@ -233,8 +265,8 @@ class ExactChecker:
 
         def part(g: int) -> tuple:
             if g not in placed:
-                link, exact, bound, T = self._parts[g]
-                placed[g] = (exact, bound, coal_transform(poses[link] @ T))
+                p = self._parts[g]
+                placed[g] = (p.exact, p.bound, coal_transform(poses[p.link] @ p.T_link_geom))
             return placed[g]
 
         return part
@@ -243,13 +275,13 @@ class ExactChecker:
         """(link index, obstacle index, placed geometry, obstacle geometry) of the world pairs
         whose bounding balls are at most ``within`` m apart (``gap`` (W,) of one configuration)."""
         for g, o in self._world_pairs[gap <= within]:
-            yield self._parts[g][0], o, part(g), self._obstacles[o][1:]
+            yield self._parts[g].link, o, part(g), self._obstacles[o][1:]
 
     def _self_candidates(self, part, gap: np.ndarray, within: float):
         """(link index, link index, placed geometry, placed geometry) of the self pairs whose
         bounding balls are at most ``within`` m apart (``gap`` (S,) of one configuration)."""
         for a, b in self._part_pairs[gap <= within]:
-            yield self._parts[a][0], self._parts[b][0], part(a), part(b)
+            yield self._parts[a].link, self._parts[b].link, part(a), part(b)
 
     def _candidates(self, poses: np.ndarray, world_gap: np.ndarray, self_gap: np.ndarray, within: float):
         """(link name, other name, geometry, geometry) of the world pairs, then the self pairs,

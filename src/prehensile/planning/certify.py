@@ -40,7 +40,7 @@ from numba import njit
 
 from prehensile.clock import clock
 from prehensile.collision import sphere_kernels as SK
-from prehensile.collision.exact import coal_geometry, coal_transform, convex_bound, enclosing_ball
+from prehensile.collision.exact import coal_geometry, coal_transform, convex_bound, enclosing_ball, robot_parts
 from prehensile.collision.sphere_checker import obstacle_arrays
 from prehensile.collision.spheres import SphereModel
 from prehensile.collision.world import Obstacle
@@ -110,14 +110,7 @@ class ExactCertifier:
                  acm: np.ndarray, cover: SphereModel | None = None) -> None:
         self.model = model
         self.T_world_base = np.asarray(T_world_base, dtype=float)
-        self._parts = []  # (link, T_link_geom, exact, convex bound, exact is convex)
-        balls = []  # per part: a ball containing it (centre in the link frame, radius)
-        for link, geometries in enumerate(model.collisions):
-            for g in geometries:
-                exact = coal_geometry(g.shape)
-                self._parts.append((link, np.asarray(g.T_link_geom, dtype=float), exact,
-                                    convex_bound(g.shape, exact), not isinstance(g.shape, Mesh)))
-                balls.append(enclosing_ball(g.shape, g.T_link_geom))
+        self._parts = robot_parts(model)
         self._obstacles = []
         boxes = []  # per obstacle: world AABB (min xyz, max xyz)
         for o in obstacles:
@@ -129,19 +122,20 @@ class ExactCertifier:
             center, half = T[:3, :3] @ (0.5 * (lo + hi)) + T[:3, 3], np.abs(T[:3, :3]) @ (0.5 * (hi - lo))
             boxes.append(np.concatenate([center - half, center + half]))
         pairs, links = [], []  # (part, obstacle or -1, other part or -1); (link a, link b or -1)
-        for a, (la, *_) in enumerate(self._parts):
+        for a, part in enumerate(self._parts):
+            la = part.link
             for o in range(len(self._obstacles)):
                 pairs.append((a, o, -1)), links.append((la, -1))
             for b in range(a + 1, len(self._parts)):
-                lb = self._parts[b][0]
+                lb = self._parts[b].link
                 if la != lb and not acm[la, lb]:
                     pairs.append((a, -1, b)), links.append((la, lb))
         self._pairs = pairs
         table = np.array(pairs, dtype=np.int64).reshape(-1, 3)
         self._pair_a, self._pair_o, self._pair_b = table[:, 0], table[:, 1], table[:, 2]
-        self._ball_center = np.array([b[0] for b in balls]).reshape(-1, 3)
-        self._ball_radius = np.array([b[1] for b in balls])
-        self._part_link = np.array([p[0] for p in self._parts], dtype=np.int64)
+        self._ball_center = np.array([p.center for p in self._parts]).reshape(-1, 3)
+        self._ball_radius = np.array([p.radius for p in self._parts])
+        self._part_link = np.array([p.link for p in self._parts], dtype=np.int64)
         self._boxes = np.array(boxes).reshape(-1, 6)
         centers, radii = _link_balls(model)
         self._weights = motion_weights(model, centers, radii, np.array(links, dtype=np.int64).reshape(-1, 2))
@@ -158,12 +152,13 @@ class ExactCertifier:
         """(lower bound of the exact distance of pair p (<= 0 only on an exact collision),
         queries used) with the parts placed at the current configuration."""
         a, o, b = self._pairs[p]
-        _, _, exact_a, bound_a, convex_a = self._parts[a]
-        Ta = placed[a]
+        part_a, Ta = self._parts[a], placed[a]
+        exact_a, bound_a, convex_a = part_a.exact, part_a.bound, part_a.convex
         if o >= 0:
             Tb, exact_b, bound_b, convex_b = self._obstacles[o]
         else:
-            Tb, (_, _, exact_b, bound_b, convex_b) = placed[b], self._parts[b]
+            part_b, Tb = self._parts[b], placed[b]
+            exact_b, bound_b, convex_b = part_b.exact, part_b.bound, part_b.convex
         d = coal.distance(bound_a, Ta, bound_b, Tb, self._request, coal.DistanceResult()) - _TOLERANCE
         if d > 0.0 or (convex_a and convex_b):
             return d, 1
@@ -174,14 +169,13 @@ class ExactCertifier:
     def _links_of(self, p: int) -> tuple[str, ...]:
         """Names of the robot links in pair p."""
         a, _, b = self._pairs[p]
-        return tuple(self.model.link_names[self._parts[k][0]] for k in (a, b) if k >= 0)
+        return tuple(self.model.link_names[self._parts[k].link] for k in (a, b) if k >= 0)
 
     def _place(self, poses: np.ndarray, parts) -> list:
         """coal transforms of ``parts`` with the link poses (L, 4, 4)."""
         placed = [None] * len(self._parts)
         for k in parts:
-            link, T_link_geom = self._parts[k][:2]
-            T = poses[link] @ T_link_geom
+            T = poses[self._parts[k].link] @ self._parts[k].T_link_geom
             self._tf[k].setTransform(np.ascontiguousarray(T[:3, :3]), np.ascontiguousarray(T[:3, 3]))
             placed[k] = self._tf[k]
         return placed

@@ -494,9 +494,10 @@ class PlanningContext:
         return res
 
     def warm_up(self, certify: bool) -> None:
-        """Build, if ``certify``, the exact certifier now (once per context; about 0.5 s for a
-        Panda's meshes): planners call this before their clock starts, so that this setup,
-        like the context's own, stays out of their budgets and reported times."""
+        """Build, if ``certify``, the exact certifier now (once per context; the robot's coal
+        geometry once per model, :func:`~prehensile.collision.exact.robot_parts`): planners call
+        this before their clock starts, so that this setup, like the context's own, stays out of
+        their budgets and reported times."""
         if certify:
             _ = self.certifier
 
