@@ -123,6 +123,18 @@ def test_blending_only_when_checked():
     assert np.array_equal(rejected.q, stops.q)
 
 
+def test_blended_wiggly_paths_keep_the_limits_at_every_sample():
+    # dense, wiggling paths like an elastic band's: the spline's curvature peaks at its knots
+    rng = np.random.default_rng(0)
+    velocity, acceleration = np.full(3, 1.0), np.full(3, 2.0)
+    for _ in range(5):
+        path = np.cumsum(rng.uniform(-0.05, 0.05, (100, 3)) + 0.02, axis=0)
+        traj = time_parameterize(path, velocity, acceleration, blend_check=lambda a, b: True)
+        assert np.all(np.abs(traj.qd) <= velocity * (1 + TOL))
+        assert np.all(np.abs(traj.qdd) <= acceleration * (1 + TOL))
+        assert np.max(np.abs(traj.qdd) / acceleration) > 0.9  # time-optimal: a joint at its limit
+
+
 def test_model_limits():
     model, indices, _, velocity, acceleration = _panda_problem()
     assert np.array_equal(velocity, model.velocity_limit[indices])

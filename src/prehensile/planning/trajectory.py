@@ -43,6 +43,7 @@ DEFAULT_ACCELERATION = 2.0
 arms accelerate a joint at 5-20 rad/s^2 (Panda datasheet: 7.5-20)."""
 
 _GRID = 100  # TOPP-RA gridpoints per straight segment (the profile is exact up to one grid step)
+_SPLINE_GRID = 8  # TOPP-RA gridpoints per spline segment, knots included (the spline's second derivative kinks there)
 _DUPLICATE_TOL = 1e-9  # rad or m: waypoints closer than this (max-norm) are one waypoint
 
 
@@ -169,10 +170,11 @@ def _corners(path: np.ndarray) -> np.ndarray:
 
 
 def _spline(corners: np.ndarray, check: Callable[[np.ndarray, np.ndarray], bool], step: float):
-    """The cubic spline through the corners if ``check`` accepts every chord between samples
-    of it spaced at most ``step`` (max-norm) apart; None otherwise."""
+    """(The cubic spline through the corners, its TOPP-RA gridpoints) if ``check`` accepts every
+    chord between samples of it spaced at most ``step`` (max-norm) apart; None otherwise."""
     ss = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(corners, axis=0), axis=1))])
-    spline = toppra.SplineInterpolator(ss / ss[-1], corners, bc_type="natural")
+    knots = ss / ss[-1]
+    spline = toppra.SplineInterpolator(knots, corners, bc_type="natural")
     count = int(np.ceil(np.sum(np.max(np.abs(np.diff(corners, axis=0)), axis=1)) / step)) + 1
     while True:
         samples = spline(np.linspace(0.0, 1.0, count + 1))
@@ -180,7 +182,9 @@ def _spline(corners: np.ndarray, check: Callable[[np.ndarray, np.ndarray], bool]
             break
         count *= 2
     if all(check(a, b) for a, b in zip(samples[:-1], samples[1:])):
-        return spline
+        fractions = np.arange(_SPLINE_GRID) / _SPLINE_GRID
+        grid = np.append((knots[:-1, None] + np.diff(knots)[:, None] * fractions).ravel(), 1.0)
+        return spline, grid
     return None
 
 
@@ -224,8 +228,9 @@ def time_parameterize(path: np.ndarray, velocity_limits: float | np.ndarray, acc
     accepts every chord between spline samples ``blend_step`` apart (e.g.
     ``PlanningContext.check_motion`` on active vectors, which must also check joint limits,
     since the spline may overshoot); otherwise the polyline is used. Limits are enforced at
-    the TOPP-RA gridpoints and checked again on the result; any residual excess (numerical,
-    or between spline gridpoints) is removed by slowing the whole motion uniformly.
+    the TOPP-RA gridpoints (the spline's knots among them) and checked again between them and
+    at every returned sample; any residual excess (numerical, or between gridpoints) is
+    removed by slowing the whole motion uniformly, so every sample meets the limits.
 
     Args:
         path: (N, n) waypoints (rad or m), N >= 1.
@@ -262,11 +267,13 @@ def time_parameterize(path: np.ndarray, velocity_limits: float | np.ndarray, acc
     if len(corners) == 1:
         zero = np.zeros((1, n))
         return Trajectory(np.zeros(1), corners, zero, zero, tuple(joint_names))
-    spline = _spline(corners, blend_check, blend_step) if blend_check is not None and len(corners) > 2 else None
-    if blend_check is not None and len(corners) > 2 and spline is None:
+    blended = _spline(corners, blend_check, blend_step) if blend_check is not None and len(corners) > 2 else None
+    if blend_check is not None and len(corners) > 2 and blended is None:
         log.info("time_parameterize: the blended path failed the check; stopping at the %d corners", len(corners) - 2)
-    pieces = [spline] if spline is not None else [_Line(a, b) for a, b in zip(corners[:-1], corners[1:])]
-    grid = None if spline is not None else np.linspace(0.0, 1.0, _GRID + 1)
+    if blended is not None:
+        pieces, grid = [blended[0]], blended[1]
+    else:
+        pieces, grid = [_Line(a, b) for a, b in zip(corners[:-1], corners[1:])], np.linspace(0.0, 1.0, _GRID + 1)
     ss, sd, piece_of = [], [], []
     for p, piece in enumerate(pieces):
         s, v = _knots(piece, velocity, acceleration, grid)
@@ -276,12 +283,23 @@ def time_parameterize(path: np.ndarray, velocity_limits: float | np.ndarray, acc
     ss, sd, piece_of = np.concatenate(ss), np.concatenate(sd), np.concatenate(piece_of)
     durations = 2.0 * (ss[:, 1] - ss[:, 0]) / (sd[:, 0] + sd[:, 1])
     starts = np.concatenate([[0.0], np.cumsum(durations)[:-1]])
-    # residual limit excess, measured at five points of every interval
+    # residual limit excess, measured at five points of every interval, then on the samples
     probe = (starts[:, None] + durations[:, None] * np.array([0.0, 0.25, 0.5, 0.75, 1 - 1e-9])).ravel()
-    _, qd, qdd = _evaluate(pieces, ss, sd, piece_of, starts, probe)
-    scale = max(1.0, float(np.max(np.abs(qd) / velocity)), float(np.sqrt(np.max(np.abs(qdd) / acceleration))))
-    sd, starts, total = sd / scale, starts * scale, float(np.sum(durations)) * scale
-    t = np.append(np.arange(max(int(np.ceil(total / dt - 1e-6)), 1)) * dt, total)
-    q, qd, qdd = _evaluate(pieces, ss, sd, piece_of, starts, t)
+    scale = _excess(*_evaluate(pieces, ss, sd, piece_of, starts, probe)[1:], velocity, acceleration)
+    while True:
+        scaled_starts, total = starts * scale, float(np.sum(durations)) * scale
+        t = np.append(np.arange(max(int(np.ceil(total / dt - 1e-6)), 1)) * dt, total)
+        q, qd, qdd = _evaluate(pieces, ss, sd / scale, piece_of, scaled_starts, t)
+        more = _excess(qd, qdd, velocity, acceleration)
+        if more <= 1.0 + 1e-9:
+            break
+        scale *= more
     q[0], q[-1], qd[0], qd[-1] = corners[0], corners[-1], 0.0, 0.0
     return Trajectory(t, q, qd, qdd, tuple(joint_names))
+
+
+def _excess(qd: np.ndarray, qdd: np.ndarray, velocity: np.ndarray, acceleration: np.ndarray) -> float:
+    """Factor (>= 1) by which slowing a motion down uniformly brings velocities qd and
+    accelerations qdd (M, n) within the limits (n,): velocities scale with its inverse,
+    accelerations with its inverse square."""
+    return max(1.0, float(np.max(np.abs(qd) / velocity)), float(np.sqrt(np.max(np.abs(qdd) / acceleration))))
