@@ -122,6 +122,17 @@ def test_rejected_updates_leave_the_path_unchanged(panda):
     assert np.allclose(band, (1 - t) * Q_START + t * Q_GOAL)
 
 
+def test_subdividing_keeps_every_waypoint_exactly(panda):
+    ctx = _context(panda, [])
+    rng = np.random.default_rng(0)
+    for _ in range(20):  # a + 1.0 * (b - a) differs from b in the last bit for some of these
+        goal = Q_START.copy()
+        goal[:7] = rng.uniform(ctx.space.lower, ctx.space.upper)
+        path = np.stack([Q_START, 0.5 * (Q_START + goal), goal])
+        band = elastic_band(ctx, path, ElasticBandSettings(max_iterations=0))
+        assert len(band) > 3 and all((band == q).all(axis=1).any() for q in path)
+
+
 def test_the_ball_prefilter_changes_nothing(panda, monkeypatch):
     """Waypoints whose covering balls keep d_min from the world skip the exact distance queries:
     the band is the same as with every waypoint queried."""

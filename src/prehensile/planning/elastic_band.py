@@ -88,11 +88,12 @@ class ElasticBandSettings:
 
 
 def _subdivide(ctx, path: np.ndarray, spacing: float) -> np.ndarray:
-    """Path (M, dof) with points inserted on each straight edge so that no edge is longer than spacing (m)."""
+    """Path (M, dof) with points inserted on each straight edge so that no edge is longer than
+    spacing (m); the given waypoints stay exactly as they are."""
     out = [path[:1]]
     for a, b in zip(path[:-1], path[1:]):
         steps = max(int(np.ceil(float(ctx.space.distance(ctx.space.active(a), ctx.space.active(b))) / spacing)), 1)
-        out.append(a + np.linspace(0.0, 1.0, steps + 1)[1:, None] * (b - a))
+        out.extend((a + np.linspace(0.0, 1.0, steps + 1)[1:-1, None] * (b - a), b[None]))
     return np.concatenate(out)
 
 
