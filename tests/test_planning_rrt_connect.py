@@ -237,6 +237,9 @@ def test_search_resumes_its_trees_and_takes_goals_added_later(arm):
     assert second.stats.nodes > first.stats.nodes  # the same trees grew on
     reachable = np.array([1.5, 0.5, -0.5])
     search.add_goals(reachable)
+    for budget in (0.0, -1.0, float("nan"), "1"):
+        with pytest.raises(PrehensileError, match="solve: time_budget_s must be a positive number"):
+            search.solve(budget)
     result = search.solve(2.0)
     assert result.goal_index == 1  # rows count over every goal added
     _check_result(ctx, result, start, reachable)
@@ -368,6 +371,9 @@ def test_shortcut_never_lengthens_nor_invalidates(arm):
         np.testing.assert_array_equal(short[-1], goal)
         assert ctx.space.path_length(short) <= length + 1e-9
         assert all(ctx.check_motion(a, b) for a, b in zip(short[:-1], short[1:]))
+    for bad in (dict(iterations=-1), dict(iterations=2.5), dict(time_budget_s=-1.0), dict(time_budget_s=float("nan"))):
+        with pytest.raises(PrehensileError, match="shortcut: iterations must be a count >= 0"):
+            shortcut(ctx, detour, 0, **bad)
     # pruning again spends no check on the pairs of waypoints found blocked before
     work = (ctx.space.indices, ctx.space.weights, ctx.resolution, ctx.spheres.data, ctx.scratch,
             ctx.motion_arrays(ctx.resolution))

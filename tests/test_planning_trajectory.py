@@ -101,6 +101,9 @@ def test_single_configuration_and_bad_input():
         time_parameterize(path, 1.0, np.ones(3))
     with pytest.raises(PrehensileError, match="dt"):
         time_parameterize(path, 1.0, 1.0, dt=0.0)
+    for step in (0.0, -0.01, float("nan")):
+        with pytest.raises(PrehensileError, match="blend_step must be positive"):
+            time_parameterize(path, 1.0, 1.0, blend_check=lambda a, b: True, blend_step=step)
     with pytest.raises(PrehensileError, match="joint names"):
         Trajectory(np.zeros(1), np.zeros((1, 2)), np.zeros((1, 2)), np.zeros((1, 2)), ("a",))
 

@@ -488,11 +488,15 @@ class RRTConnectSearch:
             chunk = int(min(max(0.25 * (deadline - now) / max(per_iteration, 1e-7), 1), 2 * chunk))
 
     def solve(self, time_budget_s: float) -> PlanResult:
-        """Search for up to ``time_budget_s`` (s) more, from where the last call stopped.
+        """Search for up to ``time_budget_s`` (s, > 0) more, from where the last call stopped.
 
         Returns:
             :class:`PlanResult` with this call's statistics (see :func:`rrt_connect`).
         """
+        if not (isinstance(time_budget_s, (int, float, np.floating)) and np.isfinite(time_budget_s)
+                and time_budget_s > 0):
+            raise PrehensileError(f"RRTConnectSearch.solve: time_budget_s must be a positive number (s), "
+                                  f"got {time_budget_s!r}")
         t0 = clock() - self._setup_s
         self._setup_s = 0.0
         deadline = t0 + time_budget_s

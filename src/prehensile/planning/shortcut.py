@@ -191,6 +191,9 @@ def shortcut(ctx: PlanningContext, path: np.ndarray, rng: np.random.Generator | 
     path = ctx.model.check_configuration(path, "path")
     if path.ndim != 2 or len(path) < 1:
         raise PrehensileError(f"shortcut: path must have shape (N, {ctx.model.dof}), got {path.shape}")
+    if not (int(iterations) == iterations and iterations >= 0 and time_budget_s >= 0):
+        raise PrehensileError(f"shortcut: iterations must be a count >= 0 and time_budget_s >= 0 (s), got "
+                              f"{iterations} and {time_budget_s}")
     fixed = ctx.space.fixed
     if len(fixed) and np.any(np.abs(path[:, fixed] - path[0, fixed]) > 1e-9):
         raise PrehensileError("shortcut: the path moves joints that are not planned in this context")

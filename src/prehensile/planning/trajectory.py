@@ -263,6 +263,8 @@ def time_parameterize(path: np.ndarray, velocity_limits: float | np.ndarray, acc
     velocity, acceleration = limits
     if not dt > 0:
         raise PrehensileError(f"time_parameterize: dt must be positive (s), got {dt}")
+    if not blend_step > 0:
+        raise PrehensileError(f"time_parameterize: blend_step must be positive (rad or m), got {blend_step}")
     corners = _corners(path)
     if len(corners) == 1:
         zero = np.zeros((1, n))
