@@ -146,6 +146,24 @@ def test_bench_mbm_another_robot_with_generated_balls(tmp_path):
 
 
 
+def test_invalid_start_is_reported_with_its_reason(tmp_path):
+    import yaml
+
+    folder = tmp_path / "problems" / "shelf_armar3"
+    _write_armar_problems(folder)
+    request = yaml.safe_load((folder / "request0001.yaml").read_text())
+    state = request["start_state"]["joint_state"]
+    state["position"][state["name"].index("Elbow_L")] = 5.0  # not planned, but outside its limits
+    (folder / "request0001.yaml").write_text(yaml.safe_dump(request))
+    out = tmp_path / "report.json"
+    result = runner.invoke(app, ["bench", "mbm", str(tmp_path / "problems"), "--robot", "armar3", "--budget", "0.5",
+                                 "--json", str(out)])
+    assert result.exit_code == 0, result.output
+    record = json.loads(out.read_text())["runs"][0]["ours"]
+    assert record["status"] == "invalid_start" and record["reason"].startswith("joint Elbow_L = 5 outside its limits")
+    assert "invalid end (first: shelf_armar3 #1): joint Elbow_L = 5" in " ".join(result.output.split())
+
+
 @pytest.mark.parametrize("goal, message", [
     ({}, "no joint goal"),
     ({"Elbow_X": 0.1}, "robot 'armar3' has no joint Elbow_X"),

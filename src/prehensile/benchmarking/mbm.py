@@ -216,6 +216,9 @@ def _record(prepared: PreparedProblem, result, time_s: float, settings: MBMSetti
         "waypoints": len(result.path), "path_length": None, "exact_colliding": None,
         "attempts": result.info.get("attempts", 1),  # > 1: planned again after a failed certification
     }
+    end = {"invalid_start": prepared.q_start, "invalid_goal": prepared.q_goal}.get(result.status.value)
+    if end is not None:
+        record["reason"] = prepared.ctx.why_invalid(end)
     if result.success:
         record["path_length"] = space.path_length(space.active(result.path))
         record["exact_colliding"] = path_collides_exactly(space, prepared.ctx.exact, result.path,

@@ -99,3 +99,9 @@ def print_report(report: dict) -> None:
     console.print(f"ours: {statuses}. Times: search + simplification, over solved problems; path m: "
                   "workspace-weighted length; colliding: returned paths the exact meshes reject"
                   + ("; speed-up: OMPL's time / ours" if ompl else ""))
+    reasons: dict[str, str] = {}  # why an end was invalid -> the first problem it happened on
+    for run in report["runs"]:
+        if run["ours"].get("reason"):
+            reasons.setdefault(run["ours"]["reason"], f"{run['scenario']} #{run['index']}")
+    for reason, first in list(reasons.items())[:3]:
+        console.print(f"[yellow]invalid end[/] (first: {first}): {reason}")
