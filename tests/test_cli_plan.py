@@ -101,6 +101,7 @@ def test_goal_in_collision_exits_1(tmp_path):
     (["plan_demo", "--goal", "9", "0", "0", "-2", "0", "2", "0.7"], "outside its limits"),
     (["plan_demo", "--robot", "nao"], "no robot 'nao'; robots: panda"),
     (["plan_demo", "--chain", "leg"], "chain"),
+    (["plan_demo", "--chain", "hand"], "the scene's goal sets panda_joint1"),
     (["plan_demo", "--planner", "prm"], "valid: rrt_connect, ik_rrt, jplus_rrt"),
     (["plan_demo", "--target", *BEHIND_THE_WALL], "give --chain"),
     (["plan_demo", "--chain", "arm", "--target", "0.3", "0.4", "0.2"], "expected 6 values"),

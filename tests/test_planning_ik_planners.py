@@ -80,6 +80,39 @@ def test_ik_planners_start_where_only_the_balls_collide(panda_scene):
     assert jplus_rrt(ctx, q, goals, settings=JPlusRRTSettings(escape=False)).status is PlanStatus.INVALID_START
 
 
+def test_jplus_rrt_moves_the_named_chain_planned_in_any_joint_order(panda_scene):
+    from dataclasses import replace
+
+    from prehensile.model.robot_model import Chain
+
+    ctx, _, q0, _ = panda_scene
+    model = ctx.model
+    arm = model.chain("arm")
+    wrist = Chain("wrist", arm.base_link, "panda_link7", arm.joint_names)  # same joints, another tip
+    model = replace(model, chains={**model.chains, "wrist": wrist})
+    ctx = PlanningContext(model, [], joints=list(arm.joint_names[::-1]), q_ref=q0)  # the chain's joints reversed
+    goal = q0.copy()
+    goal[[1, 3]] += [0.3, 0.4]
+    solver = ChainSolver(model, "wrist")
+    target = solver.tool_pose(goal)
+    with pytest.raises(PrehensileError, match="chains arm, wrist all move the planned joints"):
+        jplus_rrt(ctx, q0, target[None])
+    result = jplus_rrt(ctx, q0, target[None], settings=JPlusRRTSettings(time_budget_s=5.0), rng=0, chain="wrist")
+    assert result.success and result.stats.iterations < 200  # Jacobian steps in the chain's own order
+    assert np.linalg.norm(solver.tool_pose(result.path[-1])[:3, 3] - target[:3, 3]) <= 1e-3
+    with pytest.raises(PrehensileError, match="chain 'hand' moves panda_finger_joint1, the context plans"):
+        jplus_rrt(ctx, q0, target[None], chain="hand")
+
+
+def test_solvers_placed_elsewhere_than_the_robot_are_errors(panda_scene):
+    ctx, solver, q0, goals = panda_scene
+    moved = ChainSolver(ctx.model, "arm", T_world_root=make_pose(position=[0.15, 0.1, 0.0]))
+    with pytest.raises(PrehensileError, match="grasp_sampler: the solver of chain 'arm' has T_world_root"):
+        grasp_sampler(ctx, moved, goals, q0)
+    with pytest.raises(PrehensileError, match="dual_arm_sampler: the solver of chain 'arm'"):
+        dual_arm_sampler(ctx, [solver, moved], [goals, goals], q0)
+
+
 def test_multi_eef_rrt_names_missing_samplers_and_contexts(panda_scene):
     ctx, solver, q0, goals = panda_scene
     with pytest.raises(PrehensileError, match="no goal samplers"):

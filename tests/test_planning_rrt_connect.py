@@ -260,6 +260,21 @@ def test_attached_object_is_carried_around_obstacles(arm):
     _check_result(ctx, result, start, goal)  # ctx.exact includes the rod
 
 
+def test_attached_objects_are_validated_and_may_be_several_shapes(arm):
+    model, spheres = arm
+    bar, ball = Box((0.2, 0.05, 0.05)), Sphere(0.04)
+    for shape, message in [(Box((0.0, 0.6, 0.6)), "'plate': Box.*needs a positive size"), ([], "'plate': no shape"),
+                           ((bar, "box"), "'plate': box needs a positive size")]:
+        with pytest.raises(PrehensileError, match=message):
+            AttachedObject("plate", "l3", shape)
+    with pytest.raises(PrehensileError, match="'plate': T_link_object: upper-left 3x3 block is not a rotation"):
+        AttachedObject("plate", "l3", bar, 2.0 * np.eye(4))
+    dumbbell = AttachedObject("dumbbell", "l3", [bar, Geometry(ball, make_pose(position=[0.1, 0, 0]))])
+    assert [g.shape for g in dumbbell.geometries()] == [bar, ball]
+    ctx = PlanningContext(model, [], spheres=spheres, attached=[dumbbell])
+    assert len(ctx.collision_model.collisions[ctx.collision_model.link_index("attached/dumbbell")]) == 2
+
+
 def test_goal_the_balls_reject_is_reached_by_a_certified_escape(arm):
     model, spheres = arm
     # stretched out, l3 spans x 0.8..1.05 at y 0; a box face 2 mm beside its surface

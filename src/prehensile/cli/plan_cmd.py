@@ -82,6 +82,11 @@ def goal_configuration(robot: PlacedRobot, joints: list[str], values: list[str] 
         goal = dict(zip(joints, numbers))
     elif scene_goal:
         goal = scene_goal
+        unplanned = [j for j in goal if j not in joints]
+        if unplanned:
+            raise PrehensileError(f"robot '{robot.name}': the scene's goal sets {', '.join(unplanned)}, which the "
+                                  f"planned joints ({', '.join(joints)}, from --chain) do not include; give --goal "
+                                  "with one value per planned joint, or a --chain that moves them")
     else:
         raise PrehensileError(f"robot '{robot.name}': no goal; give --goal with {len(joints)} values "
                               f"({', '.join(joints)}) or a 'goal:' entry in the scene file")
@@ -114,7 +119,8 @@ def plan_to_target(context, placed: PlacedRobot, chain: str, planner: str, targe
 
     q_start, targets = placed.configuration, target[None]
     if planner == "jplus_rrt":
-        return jplus_rrt(context, q_start, targets, settings=JPlusRRTSettings(time_budget_s=budget), rng=seed)
+        return jplus_rrt(context, q_start, targets, settings=JPlusRRTSettings(time_budget_s=budget), rng=seed,
+                         chain=chain)
     solver = ChainSolver(placed.model, chain, T_world_root=placed.T_world_base)
     return ik_rrt(context, q_start, grasp_sampler(context, solver, targets, q_start),
                   IKRRTSettings(time_budget_s=budget), rng=seed)

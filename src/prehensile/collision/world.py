@@ -34,13 +34,17 @@ def check_obstacles(obstacles: Sequence[Obstacle], what: str = "obstacles") -> l
         check_pose(obstacle.T_world_shape, f"{where}: T_world_shape")
         if np.shape(obstacle.T_world_shape) != (4, 4):
             raise PrehensileError(f"{where}: T_world_shape must be (4, 4), got {np.shape(obstacle.T_world_shape)}")
-        if not _positive_size(obstacle.shape):
-            raise PrehensileError(f"{where}: {obstacle.shape} needs a positive size (m); valid shapes: Box(size (3,)), "
-                                  "Sphere(radius), Cylinder(radius, length), Capsule(radius, length >= 0), Mesh")
+        if not positive_size(obstacle.shape):
+            raise PrehensileError(f"{where}: {obstacle.shape} {SHAPE_SIZES}")
     return out
 
 
-def _positive_size(shape: Shape) -> bool:
+SHAPE_SIZES = ("needs a positive size (m); valid shapes: Box(size (3,)), Sphere(radius), Cylinder(radius, length), "
+               "Capsule(radius, length >= 0), Mesh")
+
+
+def positive_size(shape: Shape) -> bool:
+    """``shape`` is one of the shapes and has a positive size (a zero-length capsule is a ball)."""
     if isinstance(shape, Box):
         return np.shape(shape.size) == (3,) and bool(np.all(np.asarray(shape.size, dtype=float) > 0))
     if isinstance(shape, Sphere):

@@ -30,7 +30,7 @@ from prehensile.collision.acm import allowed_collision_matrix, rigid_bodies
 from prehensile.collision.sphere_checker import SphereChecker, frames_and_groups
 from prehensile.collision.sphere_fit import cover_geometries
 from prehensile.collision.spheres import SphereModel, generate_sphere_model, replace_link_balls
-from prehensile.collision.world import Obstacle, check_obstacles
+from prehensile.collision.world import SHAPE_SIZES, Obstacle, check_obstacles, positive_size
 from prehensile.errors import PrehensileError
 from prehensile.model.geometry import Geometry, Shape
 from prehensile.model.robot_model import FIXED, PRISMATIC, REVOLUTE, RobotModel
@@ -55,17 +55,29 @@ class AttachedObject:
 
     name: str
     link: str
-    shape: Shape | Geometry | tuple[Geometry, ...]
+    shape: Shape | Geometry | Sequence[Shape | Geometry]
     T_link_object: np.ndarray = field(default_factory=lambda: np.eye(4))
     touch_links: tuple[str, ...] = ()
 
+    def __post_init__(self) -> None:
+        where = f"AttachedObject '{self.name}'"
+        check_pose(self.T_link_object, f"{where}: T_link_object")
+        if np.shape(self.T_link_object) != (4, 4):
+            raise PrehensileError(f"{where}: T_link_object must be (4, 4), got {np.shape(self.T_link_object)}")
+        parts = self.shape if isinstance(self.shape, (list, tuple)) else (self.shape,)
+        if not parts:
+            raise PrehensileError(f"{where}: no shape given")
+        for part in parts:
+            shape = part.shape if isinstance(part, Geometry) else part
+            if not positive_size(shape):
+                raise PrehensileError(f"{where}: {shape} {SHAPE_SIZES}")
+            if isinstance(part, Geometry):
+                check_pose(part.T_link_geom, f"{where}: T_link_geom of {part.name or 'a geometry'}")
+
     def geometries(self) -> tuple[Geometry, ...]:
         """The object's geometries in the object frame."""
-        if isinstance(self.shape, Geometry):
-            return (self.shape,)
-        if isinstance(self.shape, tuple):
-            return self.shape
-        return (Geometry(self.shape, name=self.name),)
+        parts = self.shape if isinstance(self.shape, (list, tuple)) else (self.shape,)
+        return tuple(part if isinstance(part, Geometry) else Geometry(part, name=self.name) for part in parts)
 
 
 def attach_objects(model: RobotModel, spheres: SphereModel, acm: np.ndarray, attached: Sequence[AttachedObject],
@@ -417,6 +429,17 @@ class PlanningContext:
         :attr:`static_pairs` on the exact geometry)."""
         q = self.model.check_configuration(q)
         return self.model.within_limits(q) & self.spheres.is_free(q) & self.static_free(q)
+
+    def check_solvers(self, solvers: Sequence, who: str) -> None:
+        """Raise PrehensileError unless every IK solver (``ChainSolver``) places its chain's root
+        where this context places the robot (``T_world_base``): its poses would otherwise be
+        reached in the wrong place. ``who`` names the caller in the message."""
+        for solver in solvers:
+            if not np.allclose(solver.T_world_root, self.T_world_base, atol=1e-9):
+                raise PrehensileError(f"{who}: the solver of chain '{solver.chain.name}' has T_world_root "
+                                      f"{np.round(solver.T_world_root[:3, 3], 4).tolist()} (translation), not the "
+                                      f"context's T_world_base {np.round(self.T_world_base[:3, 3], 4).tolist()}; "
+                                      "build it with ChainSolver(..., T_world_root=ctx.T_world_base)")
 
     def why_invalid(self, q: np.ndarray) -> str:
         """Why a planner may reject q (dof,) as a path end (INVALID_START / INVALID_GOAL), in

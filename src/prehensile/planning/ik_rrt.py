@@ -173,6 +173,7 @@ def _random_seed(solvers: Sequence[ChainSolver], q_ref: np.ndarray, rng: np.rand
 
 def grasp_sampler(ctx: PlanningContext, solver: ChainSolver, target_poses: np.ndarray, q_ref: np.ndarray) -> GoalSampler:
     """IK-RRT goals: one arm, any of the world tool poses (k, 4, 4) (e.g. object pose x grasps)."""
+    ctx.check_solvers([solver], "grasp_sampler")
     targets = solver.targets(target_poses)
 
     def sample(rng: np.random.Generator, budget: float):
@@ -187,6 +188,7 @@ def grasp_sampler(ctx: PlanningContext, solver: ChainSolver, target_poses: np.nd
 def dual_arm_sampler(ctx: PlanningContext, arms: Sequence[ChainSolver], target_poses: Sequence[np.ndarray],
                      q_ref: np.ndarray, free: Sequence[str] | str | None = None) -> GoalSampler:
     """Bimanual IK-RRT goals: both hands on their pose sets, free joints (e.g. the hip) sampled."""
+    ctx.check_solvers(arms, "dual_arm_sampler")
 
     def sample(rng: np.random.Generator, budget: float):
         result = solve_ik_hybrid(arms, target_poses, free, _random_seed(arms, q_ref, rng), rng,
@@ -206,6 +208,7 @@ def regrasp_sampler(ctx: PlanningContext, arms: Sequence[ChainSolver], grasps: S
     Found once here: the grasp pairs whose hands do not overlap (:func:`separate_grasp_pairs`)
     and, per arm, the reachability samples free of self-collision (:func:`self_free_reach`).
     """
+    ctx.check_solvers(arms, "regrasp_sampler")
     pairs = separate_grasp_pairs(ctx, arms, grasps)
     reach = [self_free_reach(ctx, arm) for arm in arms]
 

@@ -145,7 +145,7 @@ class _PoseGoals:
         err[:3] *= min(1.0, s.max_step_position / max(pos_err, 1e-300))
         err[3:] *= min(1.0, s.max_step_rotation / max(rot_err, 1e-300))
         q_new = q.copy()
-        q_new[self.idx] = q[self.idx] + np.linalg.pinv(jac) @ err
+        q_new[solver.var_q] += np.linalg.pinv(jac) @ err  # the Jacobian's columns are in chain order
         inside = np.all(q_new[self.idx] >= self.lower) and np.all(q_new[self.idx] <= self.upper)
         return (q_new if inside else None), pos_err, rot_err
 
@@ -196,20 +196,25 @@ class _GraspPairGoals:
 
 
 def jplus_rrt(ctx: PlanningContext, q_start: np.ndarray, target_poses: np.ndarray, T_tip_tcp: np.ndarray | None = None,
-              settings: JPlusRRTSettings = JPlusRRTSettings(), rng: np.random.Generator | int | None = None) -> PlanResult:
+              settings: JPlusRRTSettings = JPlusRRTSettings(), rng: np.random.Generator | int | None = None,
+              chain: str | None = None) -> PlanResult:
     """Plan from ``q_start`` until the tool reaches any of ``target_poses``.
 
     Args:
-        ctx: planning context; its planned joints must be one chain of the model (the tool's).
+        ctx: planning context; it plans exactly the joints of the tool's chain (in any order).
         q_start: (dof,) start configuration.
         target_poses: (k, 4, 4) world tool poses, e.g. ``T_world_object @ grasps``.
         T_tip_tcp: (4, 4) tool frame on the chain's tip link.
         rng: random source or seed (:func:`~prehensile.planning.seeding.planner_rng`: seed 0 if None).
+        chain: the tool's chain (its tip link carries the tool); default: the chain of the
+            planned joints, which must be unambiguous (SRDF groups with the same joints and
+            different tips need a name).
 
     Returns:
         :class:`PlanResult`; ``goal_index`` is the grasp reached.
     """
-    return _grow(ctx, q_start, _PoseGoals(ctx, _chain_solver(ctx, T_tip_tcp), target_poses, settings), settings, rng)
+    goals = _PoseGoals(ctx, _chain_solver(ctx, chain, T_tip_tcp), target_poses, settings)
+    return _grow(ctx, q_start, goals, settings, rng)
 
 
 def regrasp_jplus_rrt(ctx: PlanningContext, q_start: np.ndarray, arms: Sequence[ChainSolver],
@@ -235,8 +240,7 @@ def regrasp_jplus_rrt(ctx: PlanningContext, q_start: np.ndarray, arms: Sequence[
     s = settings
     pair = HandPair(arms, free, JacobianIKSettings(method="pinv", max_step_position=s.max_step_position,
                                                    max_step_rotation=s.max_step_rotation))
-    if any(not np.allclose(arm.T_world_root, ctx.T_world_base) for arm in arms):
-        raise PrehensileError("regrasp J+-RRT: the arm solvers' root pose differs from the context's T_world_base")
+    ctx.check_solvers(arms, "regrasp J+-RRT")
     if np.setdiff1d(pair.var_q, ctx.space.indices).size:
         raise PrehensileError(f"regrasp J+-RRT: the arms and free joints move joints the context does not plan; "
                               f"planned: {', '.join(ctx.space.joint_names)}")
@@ -320,14 +324,24 @@ def _extend_to_goal(ctx: PlanningContext, tree: _Tree, node: int, g: int, goals,
     return -1
 
 
-def _chain_solver(ctx: PlanningContext, T_tip_tcp: np.ndarray | None) -> ChainSolver:
-    """The solver of the chain whose joints the context plans."""
-    for name, chain in ctx.model.chains.items():
-        joints = np.array([ctx.model.joint_index(j) for j in chain.joint_names], dtype=np.int64)
-        if np.array_equal(np.sort(joints), np.sort(ctx.space.indices)):
-            return ChainSolver(ctx.model, name, T_tip_tcp=T_tip_tcp, T_world_root=ctx.T_world_base)
-    raise PrehensileError(f"J+-RRT: the planned joints {ctx.space.joint_names} are not a chain of "
-                          f"'{ctx.model.name}'; chains: {', '.join(ctx.model.chains)}")
+def _chain_solver(ctx: PlanningContext, chain: str | None, T_tip_tcp: np.ndarray | None) -> ChainSolver:
+    """The solver of ``chain`` (default: the chain whose joints the context plans), checked to
+    move exactly the planned joints."""
+    model, planned = ctx.model, set(ctx.space.indices.tolist())
+    if chain is None:
+        matches = [name for name, c in model.chains.items() if {model.joint_index(j) for j in c.joint_names} == planned]
+        if not matches:
+            raise PrehensileError(f"J+-RRT: the planned joints {ctx.space.joint_names} are not a chain of "
+                                  f"'{model.name}'; chains: {', '.join(model.chains)}")
+        if len({model.chains[name].tip_link for name in matches}) > 1:
+            raise PrehensileError(f"J+-RRT: the chains {', '.join(matches)} all move the planned joints but end at "
+                                  "different links; name the tool's chain (chain=...)")
+        chain = matches[0]
+    solver = ChainSolver(model, chain, T_tip_tcp=T_tip_tcp, T_world_root=ctx.T_world_base)
+    if set(solver.var_q.tolist()) != planned:
+        raise PrehensileError(f"J+-RRT: chain '{chain}' moves {', '.join(solver.chain.joint_names)}, the context "
+                              f"plans {', '.join(ctx.space.joint_names)}: plan exactly the chain's joints")
+    return solver
 
 
 def _se3_distance(poses: np.ndarray, targets: np.ndarray, rotation_weight: float) -> np.ndarray:
