@@ -95,6 +95,20 @@ def test_goal_in_collision_exits_1(tmp_path):
     assert not (tmp_path / "trajectory.json").exists() and (tmp_path / "plan.png").is_file()
 
 
+def test_an_end_only_coarse_balls_reject_is_explained_and_finer_balls_plan(tmp_path):
+    """ARMAR-III's default balls on its torso box overlap the arm at the demo's start."""
+    args = ["demo", "--robot", "armar3", "--chain", "LeftArm", "--goal", "0.3", "0.2", "0", "0.5", "0", "0", "0",
+            "--out", tmp_path]
+    result = _plan(*args, "--budget", "0.3")
+    assert result.exit_code == 1, result.output
+    reason = json.loads((tmp_path / "path.json").read_text())["reason"]
+    assert reason.startswith("start: free on the exact geometry, but the sphere model's conservative balls collide")
+    assert "--ball-radius" in reason
+    result = _plan(*args, "--ball-radius", "0.04")
+    assert result.exit_code == 0, result.output
+    assert json.loads((tmp_path / "path.json").read_text())["status"] == "success"
+
+
 @pytest.mark.parametrize("args, message", [
     (["plan_demo", "--goal", "0.1", "0.2"], "expected 7 values"),
     (["plan_demo", "--goal", "a", "b"], "expected numbers"),
@@ -110,6 +124,7 @@ def test_goal_in_collision_exits_1(tmp_path):
     (["plan_demo", "--chain", "arm", "--planner", "jplus_rrt"], "give --target"),
     (["plan_demo", "--goal", *IN_THE_WALL, "--target", *BEHIND_THE_WALL], "not both"),
     (["plan_demo", "--seed", "-1"], "--seed"),
+    (["plan_demo", "--ball-radius", "0"], "--ball-radius: must be positive"),
     (["no_such_scene"], "bundled scenes:"),
 ])
 def test_bad_input_exits_2(args, message, tmp_path):

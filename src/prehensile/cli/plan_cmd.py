@@ -130,9 +130,7 @@ def plan_report(result, ctx, scene: Path, robot: PlacedRobot, q_goal: np.ndarray
                 planner: str, seed: int) -> dict:
     """The JSON of ``path.json``: start, goal (the configuration reached, for a target pose)
     and waypoints in the planned joints, the target pose, the other joints' values, status and
-    statistics; for an invalid start or goal, why (``reason``)."""
-    from prehensile.planning import PlanStatus
-
+    statistics; for an invalid start or goal, why (``reason``, :func:`_end_reason`)."""
     space = ctx.space
     fixed = [j for j in robot.model.joint_names if j not in space.joint_names]
     if q_goal is None and result.success:
@@ -146,10 +144,26 @@ def plan_report(result, ctx, scene: Path, robot: PlacedRobot, q_goal: np.ndarray
         "fixed_joints": {j: float(space.q_ref[robot.model.joint_index(j)]) for j in fixed},
         "path_length_m": space.path_length(space.active(result.path)) if result.success else None,
         "stats": dataclasses.asdict(result.stats),
-        "reason": (ctx.why_invalid(robot.configuration) if result.status is PlanStatus.INVALID_START
-                   else ctx.why_invalid(q_goal) if result.status is PlanStatus.INVALID_GOAL and q_goal is not None
-                   else None),
+        "reason": _end_reason(result.status, ctx, robot.configuration, q_goal),
     }
+
+
+def _end_reason(status, ctx, q_start: np.ndarray, q_goal: np.ndarray | None) -> str | None:
+    """Why the planner could not use the start or goal, "start: ..." / "goal: ...": for an
+    invalid one, or for a timeout spent searching a certified escape from an end that only the
+    sphere model rejects (finer balls, ``--ball-radius``, may then plan); None otherwise."""
+    from prehensile.planning import PlanStatus
+
+    ends = {PlanStatus.INVALID_START: [("start", q_start)], PlanStatus.INVALID_GOAL: [("goal", q_goal)],
+            PlanStatus.TIMEOUT: [("start", q_start), ("goal", q_goal)]}.get(status, [])
+    reasons = []
+    for name, q in ends:
+        why = "" if q is None else ctx.why_invalid(q)
+        if why:
+            reasons.append(f"{name}: {why}")
+    if status is PlanStatus.TIMEOUT and reasons:
+        reasons.append("finer balls (--ball-radius, e.g. 0.04) may make such ends valid")
+    return "; ".join(reasons) or None
 
 
 def picture_scene(scene: Scene, robot: PlacedRobot, configurations: np.ndarray) -> Scene:
@@ -208,12 +222,17 @@ def plan(
     planner: Optional[str] = typer.Option(None, "--planner", help="rrt_connect (to a configuration; the default) "
                                           "or, to a --target pose, ik_rrt (the default) or jplus_rrt."),
     budget: float = typer.Option(1.0, "--budget", help="Search time limit (s)."),
+    ball_radius: Optional[float] = typer.Option(None, "--ball-radius",
+                                                help="Largest ball (m) of the sphere model generated for planning "
+                                                     "(default: 8 balls per link); robots with big primitive "
+                                                     "links such as ARMAR-III's torso want 0.04."),
     seed: int = typer.Option(0, "--seed", min=0, help="Random seed."),
     out: Path = typer.Option(Path("prehensile-plan"), "--out", help="Folder for path.json, trajectory.json, plan.png."),
 ) -> None:
     """Plan from the robot's scene configuration to a goal configuration or tool pose; exit 0
     found, 1 no path, 2 bad input."""
-    from prehensile.planning import PlanningContext, PlanStatus, RRTConnectSettings, rrt_connect
+    from prehensile.collision.spheres import generate_sphere_model
+    from prehensile.planning import PlanningContext, RRTConnectSettings, rrt_connect
     from prehensile.scene.check import robot_obstacles
     from prehensile.scene.files import load_scene, robot_goals
 
@@ -232,6 +251,8 @@ def plan(
         raise PrehensileError("--target: give --chain, the chain whose tip goes to the pose")
     if not budget > 0:
         raise PrehensileError(f"--budget: must be positive (s), got {budget}")
+    if ball_radius is not None and not ball_radius > 0:
+        raise PrehensileError(f"--ball-radius: must be positive (m), got {ball_radius}")
     path = scene_path(scene)
     loaded = load_scene(path)
     goals = robot_goals(path, loaded)
@@ -249,7 +270,9 @@ def plan(
     q_start = placed.configuration
     obstacles = loaded.collision_obstacles() + [o for r in loaded.robots if r.name != placed.name
                                                 for o in robot_obstacles(r)]
-    context = PlanningContext(model, obstacles, joints=joints, q_ref=q_start, T_world_base=placed.T_world_base)
+    spheres = None if ball_radius is None else generate_sphere_model(model, max_radius=ball_radius)
+    context = PlanningContext(model, obstacles, joints=joints, q_ref=q_start, T_world_base=placed.T_world_base,
+                              spheres=spheres)
     if pose is None:
         result = rrt_connect(context, q_start, q_goal, settings=RRTConnectSettings(time_budget_s=budget),
                              rng=np.random.default_rng(seed))
@@ -262,7 +285,7 @@ def plan(
                   f"search {1e3 * stats.plan_time_s:.2f} ms, simplify {1e3 * stats.simplify_time_s:.2f} ms, "
                   f"certify {1e3 * stats.certify_time_s:.2f} ms, {len(result.path)} waypoints")
     if report["reason"]:
-        console.print(f"{'start' if result.status is PlanStatus.INVALID_START else 'goal'}: {report['reason']}")
+        console.print(report["reason"])
     console.print("wrote " + ", ".join(str(p) for p in written))
     raise typer.Exit(0 if result.success else EXIT_NO_PATH)
 
