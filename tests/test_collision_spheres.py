@@ -221,3 +221,46 @@ def test_world_clearance_is_the_exact_ball_distance():
     assert np.array_equal(screened_free.ravel(), checker.is_free(q))
     assert np.array_equal(near.ravel(), clearance < margin)
     assert 20 < (near.ravel() & free).sum() < free.sum() - 20  # near and far free configurations
+
+
+@pytest.mark.parametrize("shape", ["plane", "box", "torus"])
+def test_mesh_obstacles_are_covered_by_tight_oriented_boxes(shape):
+    """Every triangle lies in a box; a plane and a box-shaped mesh are covered exactly (a few
+    large triangles used to give one ball as large as the whole mesh)."""
+    import trimesh
+
+    from prehensile.collision.sphere_fit import box_cover
+
+    mesh = {"plane": trimesh.Trimesh([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], [[0, 1, 2], [0, 2, 3]]),
+            "box": trimesh.creation.box(extents=(1.2, 0.8, 0.05)),
+            "torus": trimesh.creation.torus(0.3, 0.05)}[shape]
+    triangles = geometry_triangles(Geometry(Mesh.from_arrays(mesh.vertices, mesh.faces)))
+    poses, halves = box_cover(triangles, 32)
+    assert len(poses) <= 32 and np.allclose(np.linalg.det(poses[:, :3, :3]), 1.0)
+    local = np.einsum("kji,tvkj->tvki", poses[:, :3, :3], triangles[:, :, None] - poses[None, None, :, :3, 3])
+    inside = np.all(np.abs(local) <= halves + 1e-9, axis=-1).all(axis=1)  # (T, K): all three vertices in box k
+    assert inside.any(axis=1).all()
+    if shape == "torus":  # the boxes hug the tube: the hole (radius 0.25 m) stays free within 0.2 m
+        hole = np.column_stack([0.2 * np.cos(np.linspace(0, 2 * np.pi, 50)), 0.2 * np.sin(np.linspace(0, 2 * np.pi, 50)),
+                                np.zeros(50)])
+        local = np.einsum("kji,pkj->pki", poses[:, :3, :3], hole[:, None] - poses[None, :, :3, 3])
+        assert not np.all(np.abs(local) <= halves, axis=-1).any()
+    else:  # flat boxes in the faces' planes, within the mesh's bounds: its faces exactly
+        corners = np.array(np.meshgrid([-1, 1], [-1, 1], [-1, 1])).reshape(3, -1).T
+        world = np.einsum("kij,ckj->cki", poses[:, :3, :3], corners[:, None] * halves) + poses[:, :3, 3]
+        assert np.all(np.min(halves, axis=1) < 1e-12)
+        assert np.all((world >= mesh.bounds[0] - 1e-9) & (world <= mesh.bounds[1] + 1e-9))
+
+
+def test_a_table_mesh_checks_like_the_box_it_is():
+    import trimesh
+
+    model = _primitive_robot()
+    pose = make_pose(rpy_to_matrix([0.0, 0.0, 0.3]), [0.4, 0.1, 0.6])  # the column stands beside it
+    table = trimesh.creation.box(extents=(0.6, 0.5, 0.04))
+    as_mesh = SphereChecker(model, [Obstacle("table", Mesh.from_arrays(table.vertices, table.faces), pose)])
+    as_box = SphereChecker(model, [Obstacle("table", Box((0.6, 0.5, 0.04)), pose)])
+    q = model.random_configurations(np.random.default_rng(1), 500)
+    free = as_box.is_free(q)
+    assert 20 < free.sum() < len(q) - 20
+    assert np.array_equal(as_mesh.is_free(q), free)

@@ -5,10 +5,10 @@ Forward kinematics and every test run in one compiled kernel
 configuration; the same kernel gives (scaled) clearances for the planners' motion checks.
 Grasped objects join as extra links (:func:`prehensile.planning.context.attach_objects`).
 Boxes, spheres, cylinders and capsules are tested exactly (ball against solid).
-Mesh obstacles are replaced by balls covering their triangles
-(:func:`~prehensile.collision.sphere_fit.cover_geometries`), which is conservative for surface
-contact, the same notion of contact as coal's mesh checks; a robot wholly inside a closed
-obstacle mesh is not detected by either checker.
+Mesh obstacles are replaced by oriented boxes covering their triangles
+(:func:`~prehensile.collision.sphere_fit.box_cover`; flat patches give flat boxes), which is
+conservative for surface contact, the same notion of contact as coal's mesh checks; a robot
+wholly inside a closed obstacle mesh is not detected by either checker.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ import numpy as np
 
 from prehensile.collision import sphere_kernels as K
 from prehensile.collision.acm import allowed_collision_matrix, rigid_bodies
-from prehensile.collision.sphere_fit import cover_geometries
+from prehensile.collision.sphere_fit import box_cover, geometry_triangles
 from prehensile.collision.spheres import SphereModel, generate_sphere_model
 from prehensile.collision.world import Obstacle, check_obstacles
 from prehensile.errors import PrehensileError
@@ -29,13 +29,14 @@ from prehensile.model.geometry import Box, Capsule, Cylinder, Geometry, Mesh, Sp
 from prehensile.model.robot_model import RobotModel
 
 
-def obstacle_arrays(obstacles: Sequence[Obstacle], mesh_spheres: int = 32) -> dict[str, np.ndarray]:
+def obstacle_arrays(obstacles: Sequence[Obstacle], mesh_boxes: int = 32) -> dict[str, np.ndarray]:
     """Flat obstacle arrays for the kernels (see :mod:`~prehensile.collision.sphere_kernels`).
 
     Returns:
         dict with ``otype`` (O,) int64, ``opose`` (O, 3, 4), ``oparam`` (O, 3), ``oaabb``
-        (6, O) (m; rows: min xyz, max xyz) and ``oname`` (O,) names; mesh obstacles expand
-        into ``mesh_spheres`` balls.
+        (6, O) (m; rows: min xyz, max xyz) and ``oname`` (O,) names; a mesh obstacle expands
+        into up to ``mesh_boxes`` oriented boxes covering its triangles (:func:`box_cover`:
+        flat patches get flat boxes).
     """
     types, poses, params, names = [], [], [], []
     for obstacle in obstacles:
@@ -44,11 +45,9 @@ def obstacle_arrays(obstacles: Sequence[Obstacle], mesh_spheres: int = 32) -> di
             raise PrehensileError(f"obstacle '{obstacle.name}': T_world_shape must be a finite (4, 4) pose")
         shape = obstacle.shape
         if isinstance(shape, Mesh):
-            centers, radii = cover_geometries((Geometry(shape),), n_spheres=mesh_spheres, max_edge=np.inf)
-            for c, r in zip(centers @ T[:3, :3].T + T[:3, 3], radii):
-                pose = np.eye(4)[:3].copy()
-                pose[:, 3] = c
-                types.append(K.SPHERE), poses.append(pose), params.append([r, 0.0, 0.0]), names.append(obstacle.name)
+            box_poses, halves = box_cover(geometry_triangles(Geometry(shape)), mesh_boxes)
+            for pose, half in zip(T @ box_poses, halves):
+                types.append(K.BOX), poses.append(pose[:3]), params.append(half), names.append(obstacle.name)
             continue
         if isinstance(shape, Sphere):
             kind, param = K.SPHERE, [shape.radius, 0.0, 0.0]
@@ -177,13 +176,13 @@ class SphereChecker:
             covering the collision geometry).
         acm: (L, L) bool allowed-collision matrix (True = skip); default
             :func:`~prehensile.collision.acm.allowed_collision_matrix`.
-        mesh_spheres: balls per mesh obstacle.
+        mesh_boxes: oriented boxes per mesh obstacle (:func:`obstacle_arrays`).
         static_hit: whether the robot's root body meets an obstacle, if known (from the exact
             geometry: the balls only bound it); None: decided by the root body's balls.
     """
 
     def __init__(self, model: RobotModel, obstacles: Sequence[Obstacle], T_world_base: np.ndarray | None = None,
-                 spheres: SphereModel | None = None, acm: np.ndarray | None = None, mesh_spheres: int = 32,
+                 spheres: SphereModel | None = None, acm: np.ndarray | None = None, mesh_boxes: int = 32,
                  static_hit: bool | None = None) -> None:
         self.model = model
         self.spheres = generate_sphere_model(model) if spheres is None else spheres
@@ -200,7 +199,7 @@ class SphereChecker:
         pairs.sort(key=lambda p: (_tree_distance(model, int(g_link[p[0]]), int(g_link[p[1]])), p))
         count = lambda g: groups["ranges"][g, 1] - groups["ranges"][g, 0]  # noqa: E731
         pairs = [(a, b) if count(a) <= count(b) else (b, a) for a, b in pairs]
-        self.obstacle_data = obstacle_arrays(check_obstacles(obstacles), mesh_spheres)
+        self.obstacle_data = obstacle_arrays(check_obstacles(obstacles), mesh_boxes)
         d = self.obstacle_data
         static = groups["frame"] == 0  # frame 0 is the model root: it never moves
         self.data = (

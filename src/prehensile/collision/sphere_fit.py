@@ -99,6 +99,78 @@ def push_inside(center: np.ndarray, points: np.ndarray, direction: np.ndarray, p
     return best
 
 
+def cluster_triangles(triangles: np.ndarray, n_clusters: int) -> tuple[np.ndarray, np.ndarray]:
+    """Area-weighted k-means of the centroids of triangles (T, 3, 3), T >= 1, from a
+    deterministic farthest-point start: (label (T,) int in [0, K), cluster centres (K, 3)),
+    K = min(n_clusters, T) (clusters may end up empty)."""
+    centroids = triangles.mean(axis=1)
+    weight = 0.5 * np.linalg.norm(np.cross(triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0]),
+                                  axis=1) + 1e-12  # area
+    k = max(1, min(int(n_clusters), len(triangles)))
+    seeds = [int(np.argmax(np.linalg.norm(centroids - centroids.mean(axis=0), axis=1)))]
+    dist = np.linalg.norm(centroids - centroids[seeds[0]], axis=1)
+    for _ in range(1, k):
+        seeds.append(int(np.argmax(dist)))
+        dist = np.minimum(dist, np.linalg.norm(centroids - centroids[seeds[-1]], axis=1))
+    centers = centroids[seeds].copy()
+    for _ in range(30):
+        label = np.argmin(((centroids[:, None, :] - centers[None]) ** 2).sum(-1), axis=1)
+        for j in range(k):
+            mask = label == j
+            if mask.any():
+                centers[j] = np.average(centroids[mask], axis=0, weights=weight[mask])
+    return np.argmin(((centroids[:, None, :] - centers[None]) ** 2).sum(-1), axis=1), centers
+
+
+_BOX_EDGES = 64  # longest edges of a cluster tried as box axes
+_THIN = 1e-3  # m added to each half size when comparing candidate boxes (flat boxes have no volume)
+
+
+def box_cover(triangles: np.ndarray, n_boxes: int) -> tuple[np.ndarray, np.ndarray]:
+    """Cover triangles (T, 3, 3) with at most ``n_boxes`` oriented boxes, one per cluster of
+    :func:`cluster_triangles` holding all its vertices (a box holding a triangle's vertices
+    holds the triangle). Of the boxes along the cluster's principal axes, or along its normal
+    and one of its longest edges, the smallest is kept: flat patches get flat boxes, so a plane
+    or a box-shaped mesh is covered exactly.
+
+    Returns:
+        poses (K, 4, 4) (rotations with determinant +1) and half sizes (K, 3) (m, >= 0).
+    """
+    triangles = np.asarray(triangles, dtype=float)
+    if len(triangles) == 0:
+        return np.zeros((0, 4, 4)), np.zeros((0, 3))
+    label = cluster_triangles(triangles, n_boxes)[0]
+    poses, halves = [], []
+    for j in np.unique(label):
+        patch = triangles[label == j]
+        points = patch.reshape(-1, 3)
+        mean = points.mean(axis=0)
+        principal = np.linalg.svd(points - mean, full_matrices=True)[2].T  # columns, the normal last
+        normal = principal[:, 2]
+        edges = np.concatenate([patch[:, 1] - patch[:, 0], patch[:, 2] - patch[:, 1], patch[:, 0] - patch[:, 2]])
+        edges -= np.outer(edges @ normal, normal)  # into the patch's plane
+        lengths = np.linalg.norm(edges, axis=1)
+        longest = [i for i in np.argsort(-lengths)[:_BOX_EDGES] if lengths[i] > 1e-12]
+        best = None
+        for axes in [principal] + [_frame(edges[i] / lengths[i], normal) for i in longest]:
+            axes = axes if np.linalg.det(axes) > 0 else axes * np.array([1.0, 1.0, -1.0])
+            local = (points - mean) @ axes
+            lo, hi = local.min(axis=0), local.max(axis=0)
+            size = np.prod(0.5 * (hi - lo) + _THIN)
+            if best is None or size < best[0]:
+                best = size, axes, lo, hi
+        _, axes, lo, hi = best
+        pose = np.eye(4)
+        pose[:3, :3], pose[:3, 3] = axes, mean + axes @ (0.5 * (lo + hi))
+        poses.append(pose), halves.append(0.5 * (hi - lo))
+    return np.array(poses), np.array(halves)
+
+
+def _frame(x: np.ndarray, normal: np.ndarray) -> np.ndarray:
+    """(3, 3) axes (columns): unit x (orthogonal to the unit ``normal``), normal x x, normal."""
+    return np.column_stack([x, np.cross(normal, x), normal])
+
+
 def cover_triangles(triangles: np.ndarray, n_spheres: int, refine: int = 4,
                     planes: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Cover triangles (T, 3, 3) with at most ``n_spheres`` balls.
@@ -115,27 +187,13 @@ def cover_triangles(triangles: np.ndarray, n_spheres: int, refine: int = 4,
         centres (K, 3) and radii (K,) in m, K <= n_spheres.
     """
     triangles = np.asarray(triangles, dtype=float)
-    n = len(triangles)
-    if n == 0:
+    if len(triangles) == 0:
         return np.zeros((0, 3)), np.zeros(0)
     if planes is None:
         planes = hull_planes(triangles.reshape(-1, 3))
-    k = max(1, min(int(n_spheres), n))
-    centroids = triangles.mean(axis=1)
-    normals = np.cross(triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0])  # 2 * area
-    weight = 0.5 * np.linalg.norm(normals, axis=1) + 1e-12
-    seeds = [int(np.argmax(np.linalg.norm(centroids - centroids.mean(axis=0), axis=1)))]
-    dist = np.linalg.norm(centroids - centroids[seeds[0]], axis=1)
-    for _ in range(1, k):
-        seeds.append(int(np.argmax(dist)))
-        dist = np.minimum(dist, np.linalg.norm(centroids - centroids[seeds[-1]], axis=1))
-    centers = centroids[seeds].copy()
-    for _ in range(30):
-        label = np.argmin(((centroids[:, None, :] - centers[None]) ** 2).sum(-1), axis=1)
-        for j in range(k):
-            mask = label == j
-            if mask.any():
-                centers[j] = np.average(centroids[mask], axis=0, weights=weight[mask])
+    centers = cluster_triangles(triangles, n_spheres)[1]
+    k = len(centers)
+    normals = np.cross(triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0])
     for _ in range(refine + 1):
         need = np.sqrt(((triangles[:, :, None, :] - centers[None, None]) ** 2).sum(-1)).max(axis=1)
         label = np.argmin(need, axis=1)
