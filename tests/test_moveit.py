@@ -117,6 +117,25 @@ def test_folder_and_single_files_with_robot(tmp_path):
     assert tuple(single_request) == tuple(request) and single_request.source == request.source
 
 
+def test_scenario_folders_sharing_a_name_stay_apart_and_archives_name_their_top(tmp_path):
+    scene = {"name": "s", "world": {"collision_objects": []}}
+    request = {"group_name": "arm", "goal_constraints": [{"joint_constraints": [{"joint_name": "j", "position": 0}]}]}
+    for folder in ("a/x", "b/x", "y"):
+        (tmp_path / "set" / folder).mkdir(parents=True)
+        for index in (1, 2):
+            (tmp_path / "set" / folder / f"scene{index:04d}.yaml").write_text(yaml.safe_dump(scene))
+            (tmp_path / "set" / folder / f"request{index:04d}.yaml").write_text(yaml.safe_dump(request))
+    found = [(p.scenario, p.index) for p in iter_mbm_problems(tmp_path / "set")]
+    assert found == [("a/x", 1), ("a/x", 2), ("b/x", 1), ("b/x", 2), ("y", 1), ("y", 2)]
+    (tmp_path / "set" / "b" / "x" / "scene0002.yaml").unlink()  # not paired with a/x's scene
+    with pytest.raises(SceneError, match="b/x problem 0002 has no scene file"):
+        list(iter_mbm_problems(tmp_path / "set"))
+    with tarfile.open(tmp_path / "y.tar.bz2", "w:bz2") as archive:  # files at the archive's top
+        for name in ("scene0001.yaml", "request0001.yaml"):
+            archive.add(tmp_path / "set" / "y" / name, arcname=name)
+    assert [(p.scenario, p.index) for p in iter_mbm_problems(tmp_path / "y.tar.bz2")] == [("y", 1)]
+
+
 def test_object_pose_composes_with_primitive_poses():
     data = {"world": {"collision_objects": [{
         "id": "crate",

@@ -27,7 +27,7 @@ import os
 import re
 import tarfile
 from dataclasses import dataclass, field
-from pathlib import Path
+from pathlib import Path, PurePosixPath
 from types import MappingProxyType
 from typing import Any, Iterator, Mapping
 
@@ -145,13 +145,15 @@ def iter_mbm_problems(path: str | os.PathLike, robot: RobotModel | None = None,
     """
     path = Path(path)
     texts: dict[tuple[str, int], dict[str, tuple[str, str]]] = {}
-    for name, read in _problem_files(path):
-        match = _PROBLEM_FILE.match(Path(name).name)
+    for name, relative, read in _problem_files(path):
+        match = _PROBLEM_FILE.match(PurePosixPath(relative).name)
         if match:
-            key = (Path(name).parent.name, int(match.group(2)))
+            key = (str(PurePosixPath(relative).parent), int(match.group(2)))
             texts.setdefault(key, {})[match.group(1)] = (name, read())
+    label = _scenario_labels({folder for folder, _ in texts}, path)
     counts: dict[str, int] = {}
-    for (scenario, index), pair in sorted(texts.items()):
+    for (folder, index), pair in sorted(texts.items(), key=lambda item: (label[item[0][0]], item[0][1])):
+        scenario = label[folder]
         counts[scenario] = counts.get(scenario, 0) + 1
         if 0 < per_scenario < counts[scenario]:
             continue
@@ -373,15 +375,29 @@ def _parse(text: str, source: str) -> Any:
 
 
 def _problem_files(path: Path):
-    """(name, reader) for each file of a folder or tar archive; names use '/' separators."""
+    """(name for messages, path inside the folder or archive with '/' separators, reader) for
+    each file of a folder or tar archive."""
     if path.is_dir():
         for file in sorted(path.rglob("*.y*ml")):
-            yield str(file), (lambda f=file: f.read_text(encoding="utf-8"))
+            yield str(file), file.relative_to(path).as_posix(), (lambda f=file: f.read_text(encoding="utf-8"))
     elif path.is_file() and tarfile.is_tarfile(path):
         with tarfile.open(path, "r:*") as archive:
             for member in archive:
                 if member.isfile():
                     data = archive.extractfile(member).read().decode("utf-8")
-                    yield f"{path}:{member.name}", (lambda d=data: d)
+                    yield f"{path}:{member.name}", member.name, (lambda d=data: d)
     else:
         raise SceneError(f"{path}: not a folder or tar archive of MoveIt problems")
+
+
+def _scenario_labels(folders: set[str], root: Path) -> dict[str, str]:
+    """Scenario name of each folder holding problems (paths inside ``root``, '.' for its top):
+    the folder's own name, or its path where two folders share a name; the top is named after
+    ``root`` (a folder, or an archive without its suffixes)."""
+    def name(folder: str) -> str:
+        return PurePosixPath(folder).name if folder != "." else root.name.split(".")[0]
+
+    taken: dict[str, int] = {}
+    for folder in folders:
+        taken[name(folder)] = taken.get(name(folder), 0) + 1
+    return {folder: name(folder) if taken[name(folder)] == 1 else folder for folder in folders}
