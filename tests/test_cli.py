@@ -116,6 +116,19 @@ def test_demo_writes_png_and_json(tmp_path):
     assert "demo.png" in result.stdout and "demo.json" in result.stdout
 
 
+def test_unwritable_outputs_exit_2_before_any_work(tmp_path):
+    a_file = tmp_path / "afile.txt"
+    a_file.write_text("")
+    for args, message in [(("demo", "--out", a_file), "is a file, not a folder"),
+                          (("plan", "plan_demo", "--out", a_file / "out"), "is a file, not a folder"),
+                          (("bench", "mbm", tmp_path, "--robot", "panda", "--json", tmp_path), "is a folder"),
+                          (("bench", "ik", "--robot", "panda", "--base", "panda_link0", "--tip", "panda_hand_tcp",
+                            "--json", a_file / "ik.json"), "is a file, not a folder")]:
+        result = _run(*args)
+        assert result.exit_code == 2, result.output
+        assert message in " ".join(result.output.split()) and "Traceback" not in result.output
+
+
 def test_check_with_sphere_models():
     assert _run("check", DATA / "free.yaml", "--spheres").exit_code == 0
     colliding = _run("check", DATA / "colliding.yaml", "--spheres", "--json")

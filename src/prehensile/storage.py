@@ -9,6 +9,8 @@ import tempfile
 from pathlib import Path
 from typing import Any
 
+from prehensile.errors import PrehensileError
+
 
 def atomic_write_bytes(path: str | Path, data: bytes) -> Path:
     """Write ``data`` to ``path`` atomically (parent folders are created)."""
@@ -36,3 +38,21 @@ def atomic_write_text(path: str | Path, text: str) -> Path:
 def atomic_write_json(path: str | Path, data: Any) -> Path:
     """Write ``data`` as indented JSON to ``path`` atomically."""
     return atomic_write_text(path, json.dumps(data, indent=2, sort_keys=False) + "\n")
+
+
+def check_writable(path: str | Path, what: str, folder: bool = False) -> Path:
+    """``path`` if a file (with ``folder``: a folder) can be written there, before a long job
+    ends by writing it; else PrehensileError naming ``what`` (e.g. the option) and why."""
+    path = Path(path)
+    if folder and path.exists() and not path.is_dir():
+        raise PrehensileError(f"{what}: {path} is a file, not a folder")
+    if not folder and path.is_dir():
+        raise PrehensileError(f"{what}: {path} is a folder; give a file name")
+    for existing in (path if folder else path.parent, *(path if folder else path.parent).parents):
+        if existing.exists():
+            if not existing.is_dir():
+                raise PrehensileError(f"{what}: {existing} is a file, not a folder")
+            if not os.access(existing, os.W_OK | os.X_OK):
+                raise PrehensileError(f"{what}: {existing} is not writable")
+            break
+    return path

@@ -43,8 +43,10 @@ def bench_ik(
     our time relative to the peers'."""
     from prehensile import robots
     from prehensile.benchmarking.ik import IKBenchSettings, run_ik_bench
-    from prehensile.storage import atomic_write_json
+    from prehensile.storage import atomic_write_json, check_writable
 
+    if json_out is not None:
+        check_writable(json_out, "--json")
     settings = IKBenchSettings(n=n, methods=split_names(method) or ("dls",), peers=split_names(peers), seed=seed,
                                time_budget_s=budget, ikpy_targets=ikpy_targets)
     model = robots.load(robot)

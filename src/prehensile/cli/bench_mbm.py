@@ -38,9 +38,11 @@ def bench_mbm(
     path length, certification time and exactly-colliding paths, per scenario and overall."""
     from prehensile import robots
     from prehensile.benchmarking.mbm import MBMSettings, benchmark_spheres, run_mbm
-    from prehensile.storage import atomic_write_json
+    from prehensile.storage import atomic_write_json, check_writable
 
     settings = MBMSettings(planner=planner, time_budget_s=budget, seed=seed, limit=limit, compare_ompl=compare_ompl)
+    if json_out is not None:
+        check_writable(json_out, "--json")
     if not problems.exists():
         raise PrehensileError(f"{problems}: no such folder or archive of MoveIt problems")
     if spheres is not None and not spheres.is_file():

@@ -13,7 +13,6 @@ with code 2; ``check`` exits 0 when the scene is collision-free and 1 when somet
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import List, Optional
 
@@ -148,8 +147,10 @@ def demo(
     """Load every bundled robot and the bundled scene, check it and draw it."""
     from prehensile import robots
     from prehensile.scene import bundled_scene_path, check_scene, load_scene
+    from prehensile.storage import atomic_write_json, check_writable
     from prehensile.viz import render_scene
 
+    check_writable(out, "--out", folder=True)
     models = []
     for name in robots.available():
         model = robots.load(name)
@@ -163,7 +164,7 @@ def demo(
     png = render_scene(scene, out / "demo.png", result.colliding_links, result.colliding_bodies(),
                        title="prehensile demo: colliding links in red")
     report = {"scene": str(path), "bundled_robots": models, **result.to_dict()}
-    (out / "demo.json").write_text(json.dumps(report, indent=2), encoding="utf-8")
+    atomic_write_json(out / "demo.json", report)
     console.print(f"wrote {png} and {out / 'demo.json'}")
 
 

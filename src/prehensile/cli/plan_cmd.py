@@ -235,6 +235,7 @@ def plan(
     from prehensile.planning import PlanningContext, RRTConnectSettings, rrt_connect
     from prehensile.scene.check import robot_obstacles
     from prehensile.scene.files import load_scene, robot_goals
+    from prehensile.storage import check_writable
 
     if goal and target:
         raise PrehensileError("give either --goal (a configuration) or --target (a tool pose), not both")
@@ -253,6 +254,7 @@ def plan(
         raise PrehensileError(f"--budget: must be positive (s), got {budget}")
     if ball_radius is not None and not ball_radius > 0:
         raise PrehensileError(f"--ball-radius: must be positive (m), got {ball_radius}")
+    check_writable(out, "--out", folder=True)
     path = scene_path(scene)
     loaded = load_scene(path)
     goals = robot_goals(path, loaded)

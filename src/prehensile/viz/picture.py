@@ -8,6 +8,7 @@ light. Colliding links and bodies are drawn red and labelled.
 
 from __future__ import annotations
 
+import io
 import os
 from collections.abc import Iterable, Mapping
 from pathlib import Path
@@ -18,6 +19,7 @@ from trimesh.remesh import subdivide_to_size
 
 from prehensile.model.geometry import Geometry, shape_to_trimesh
 from prehensile.scene.scene import Scene
+from prehensile.storage import atomic_write_bytes
 
 ROBOT_COLORS = ("#8fa3bf", "#a993c4", "#7fb0b8", "#c49bb4", "#9aa7b0")
 OBSTACLE_COLOR = "#c8b28a"
@@ -207,10 +209,9 @@ def render_scene(
     if title:
         fig.suptitle(title, fontsize=12)
     fig.subplots_adjust(left=0.01, right=0.99, bottom=0.02, top=0.93, wspace=0.02)
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path)
-    return path
+    image = io.BytesIO()
+    fig.savefig(image, format=Path(path).suffix.lstrip(".") or "png")
+    return atomic_write_bytes(path, image.getvalue())
 
 
 def _spread(labels: list[tuple[str, np.ndarray]], lift: float = 0.25, gap: float = 0.08):
