@@ -577,6 +577,7 @@ def test_a_robot_standing_on_a_table_plans():
     ({"obstacles": [Obstacle("ball", Sphere(0.1), np.diag([2.0, 2.0, 2.0, 1.0]))]}, "not a rotation matrix"),
     ({"T_world_base": np.full((4, 4), np.nan)}, "T_world_base: contains NaN"),
     ({"T_world_base": np.eye(3)}, r"T_world_base: expected shape \(\.\.\., 4, 4\)"),
+    ({"q_ref": np.zeros((1, 3))}, r"q_ref: expected one configuration \(3,\), got \(1, 3\)"),
     ({"acm": np.zeros((3, 3), dtype=bool)}, r"acm must be \(\d+, \d+\)"),
 ])
 def test_bad_context_inputs_are_errors(arm, kwargs, message):

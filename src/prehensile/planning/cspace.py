@@ -90,6 +90,8 @@ class ConfigurationSpace:
         self.fixed = np.setdiff1d(np.arange(model.dof), self.indices)
         """(dof - n,) indices of the variables not planned (held at ``q_ref``)."""
         self.q_ref = model.neutral_configuration() if q_ref is None else model.check_configuration(q_ref, "q_ref").copy()
+        if self.q_ref.shape != (model.dof,):
+            raise PrehensileError(f"q_ref: expected one configuration ({model.dof},), got {self.q_ref.shape}")
         self.lower = np.where(np.isfinite(model.lower[self.indices]), model.lower[self.indices], -np.pi)
         self.upper = np.where(np.isfinite(model.upper[self.indices]), model.upper[self.indices], np.pi)
         if weights is None:
