@@ -197,8 +197,9 @@ def test_empty_problem_folder_exits_2(tmp_path):
 def test_settings_name_valid_choices():
     with pytest.raises(PrehensileError, match="valid: rrt_connect"):
         MBMSettings(planner="prm")
-    with pytest.raises(PrehensileError, match="budget"):
-        MBMSettings(time_budget_s=0)
+    for budget in (0, float("inf"), float("nan")):
+        with pytest.raises(PrehensileError, match="budget: must be a positive number"):
+            MBMSettings(time_budget_s=budget)
 
 
 def test_summaries():

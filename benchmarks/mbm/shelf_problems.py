@@ -82,7 +82,11 @@ def main() -> None:
     parser.add_argument("--scenes", type=int, default=200, help="give up after COUNT x SCENES scenes tried")
     parser.add_argument("--seed", type=int, default=1, help="seed of the scene offsets and configurations")
     args = parser.parse_args()
+    if args.count < 1 or args.scenes < 1:
+        parser.error("--count and --scenes must be at least 1")
     model = robots.load(args.robot)
+    if args.group not in model.chains:
+        parser.error(f"robot '{model.name}' has no group '{args.group}'; groups: {', '.join(model.chains)}")
     chain = model.chain(args.group)
     base = link_pose(model, model.neutral_configuration(), chain.base_link)[:3, 3]
     forward = np.array([args.forward[0], args.forward[1], 0.0])

@@ -72,8 +72,8 @@ class MBMSettings:
     def __post_init__(self) -> None:
         if self.planner not in PLANNERS:
             raise PrehensileError(f"planner '{self.planner}' is not available; valid: {', '.join(PLANNERS)}")
-        if not self.time_budget_s > 0:
-            raise PrehensileError(f"budget: must be positive (s), got {self.time_budget_s}")
+        if not 0 < self.time_budget_s < np.inf:
+            raise PrehensileError(f"budget: must be a positive number (s), got {self.time_budget_s}")
         if self.limit < 0:
             raise PrehensileError(f"limit: must be >= 0 (0 = all problems), got {self.limit}")
         for name in ("resolution", "certify_resolution", "verify_resolution"):

@@ -83,7 +83,7 @@ def print_report(report: dict) -> None:
     """A rich table: per scenario and overall one row for ours and, when run, one for OMPL."""
     ompl = report.get("ompl")
     table = Table(Column("scenario", no_wrap=True), "planner", "solved", "median ms", "p95 ms", "path m",
-                  "certify ms", "colliding", *(("speed-up median / p95",) if ompl else ()),
+                  "certify ms", "colliding", *(("speed-up median / p95 / paired",) if ompl else ()),
                   title=f"{report['settings']['planner']} on {report['problems']}")
     for name in [*report["scenarios"], "overall"]:
         pick = (lambda part: part["overall"] if name == "overall" else part["scenarios"][name])  # noqa: E731
@@ -94,7 +94,8 @@ def print_report(report: dict) -> None:
                      _ms(s["p95_ms"]), _ms(s["path_length"]), _ms(s["certify_median_ms"]), str(s["colliding_paths"])]
             if ompl:
                 r = pick({"overall": report["ratios"], "scenarios": report["ratios"]["scenarios"]})
-                cells.append(f"{_x(r['median_speedup'])} / {_x(r['p95_speedup'])}" if k == 0 else "")
+                cells.append(f"{_x(r['median_speedup'])} / {_x(r['p95_speedup'])} / {_x(r['paired_median_speedup'])}"
+                             if k == 0 else "")
             table.add_row(*cells, end_section=k == len(rows) - 1 and bool(ompl))
     console.print(table)
     statuses = ", ".join(f"{k} {v}" for k, v in report["overall"]["statuses"].items())
