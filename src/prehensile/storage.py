@@ -48,7 +48,8 @@ def check_writable(path: str | Path, what: str, folder: bool = False) -> Path:
         raise PrehensileError(f"{what}: {path} is a file, not a folder")
     if not folder and path.is_dir():
         raise PrehensileError(f"{what}: {path} is a folder; give a file name")
-    for existing in (path if folder else path.parent, *(path if folder else path.parent).parents):
+    target = path if folder else path.parent
+    for existing in (target, *target.parents):  # the nearest one that exists must be a writable folder
         if existing.exists():
             if not existing.is_dir():
                 raise PrehensileError(f"{what}: {existing} is a file, not a folder")

@@ -395,7 +395,9 @@ def _scenario_labels(folders: set[str], root: Path) -> dict[str, str]:
     the folder's own name, or its path where two folders share a name; the top is named after
     ``root`` (a folder, or an archive without its suffixes)."""
     def name(folder: str) -> str:
-        return PurePosixPath(folder).name if folder != "." else root.name.split(".")[0]
+        if folder != ".":
+            return PurePosixPath(folder).name
+        return root.name if root.is_dir() else root.name.split(".")[0]
 
     taken: dict[str, int] = {}
     for folder in folders:
