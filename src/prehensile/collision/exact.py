@@ -21,7 +21,7 @@ from prehensile.errors import PrehensileError
 from prehensile.kinematics.forward import forward_kinematics
 from prehensile.model.geometry import Box, Capsule, Cylinder, Mesh, Shape, Sphere
 from prehensile.model.robot_model import RobotModel
-from prehensile.spatial.transforms import make_pose
+from prehensile.spatial.transforms import check_one_pose, make_pose
 
 
 def coal_geometry(shape: Shape):
@@ -192,7 +192,7 @@ class ExactChecker:
     def __init__(self, model: RobotModel, obstacles: Sequence[Obstacle], T_world_base: np.ndarray | None = None,
                  acm: np.ndarray | None = None) -> None:
         self.model = model
-        self.T_world_base = np.eye(4) if T_world_base is None else np.asarray(T_world_base, dtype=float)
+        self.T_world_base = np.eye(4) if T_world_base is None else check_one_pose(T_world_base, "T_world_base")
         self.acm = allowed_collision_matrix(model) if acm is None else np.asarray(acm, dtype=bool)
         self.obstacles = check_obstacles(obstacles)
         self._obstacles = []  # (name, exact, convex bound, transform)

@@ -11,12 +11,14 @@ import numpy as np
 from prehensile.errors import PrehensileError
 from prehensile.kinematics import kernels
 from prehensile.model.robot_model import RobotModel
+from prehensile.spatial.transforms import check_one_pose
 
 _EYE = np.eye(4)
 
 
 def _base(T_world_base) -> np.ndarray:
-    return _EYE if T_world_base is None else np.ascontiguousarray(T_world_base, dtype=float)
+    """The root pose (4, 4), checked rigid; identity for None."""
+    return _EYE if T_world_base is None else check_one_pose(T_world_base, "T_world_base")
 
 
 def _flat(model: RobotModel, q) -> tuple[np.ndarray, tuple[int, ...]]:
@@ -83,7 +85,9 @@ def frame_jacobian(
         raise PrehensileError(f"frame must be 'world' or 'local', got '{frame}'")
     flat, batch = _flat(model, q)
     index = model.link_index(link)
-    point = np.zeros(3) if T_link_frame is None else np.ascontiguousarray(T_link_frame[:3, 3], dtype=float)
+    if T_link_frame is not None:
+        T_link_frame = check_one_pose(T_link_frame, "T_link_frame")
+    point = np.zeros(3) if T_link_frame is None else np.ascontiguousarray(T_link_frame[:3, 3])
     pose = np.empty((flat.shape[0], 4, 4))
     jac = np.empty((flat.shape[0], 6, model.dof))
     bad = kernels.fk_jacobian_batch_into(flat, _base(T_world_base), index, point, model.joint_table, pose, jac)

@@ -161,3 +161,11 @@ def check_pose(T: np.ndarray, what: str = "pose", atol: float = 1e-6) -> np.ndar
     if defect == 3:
         raise PrehensileError(f"{what}: last row must be [0, 0, 0, 1]")
     return T
+
+
+def check_one_pose(T: np.ndarray, what: str = "pose") -> np.ndarray:
+    """One rigid transform (4, 4) (:func:`check_pose`) as a contiguous float array."""
+    T = check_pose(T, what)
+    if T.shape != (4, 4):
+        raise PrehensileError(f"{what}: expected one pose (4, 4), got {T.shape}")
+    return np.ascontiguousarray(T)
