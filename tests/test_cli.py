@@ -103,6 +103,23 @@ def test_check_bad_scene_file(tmp_path):
     assert "typo.yaml" in result.output and "did you mean 'obstacles'" in result.output
 
 
+@pytest.mark.parametrize("entry, message", [
+    ("robots: [{robot: [nao]}]", "robots[0].robot: expected a bundled robot name or a robot file path"),
+    ("robots: [{robot: nao}]\nobstacles: [{name: wall, shape: {type: mesh, file: empty.stl}}]",
+     "empty.stl: no triangles"),
+    ("robots: [{robot: nao}]\nobstacles: [{name: wall, shape: {type: mesh, file: notes.yaml}}]",
+     "notes.yaml: not readable as a triangle"),
+])
+def test_bad_scene_entries_exit_2(tmp_path, entry, message):
+    (tmp_path / "empty.stl").write_text("solid empty\nendsolid empty\n")
+    (tmp_path / "notes.yaml").write_text("a: 1\n")
+    scene = tmp_path / "scene.yaml"
+    scene.write_text(f"version: 1\n{entry}\n")
+    result = _run("check", scene)
+    assert result.exit_code == 2, result.output
+    assert message in " ".join(result.output.split())
+
+
 def test_demo_writes_png_and_json(tmp_path):
     result = _run("demo", "--out", tmp_path / "out")
     assert result.exit_code == 0, result.output

@@ -12,6 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
+from prehensile.errors import ModelError
+
 
 @dataclass(frozen=True)
 class Box:
@@ -72,7 +74,13 @@ class Mesh:
         if self.vertices is not None:
             loaded = trimesh.Trimesh(np.array(self.vertices), np.array(self.faces), process=False)
         else:
-            loaded = trimesh.load(self.path, force="mesh", process=False)
+            try:
+                loaded = trimesh.load(self.path, force="mesh", process=False)
+            except Exception as error:  # trimesh raises many kinds for unreadable files
+                raise ModelError(f"mesh {self.path}: not readable as a triangle mesh ({error}); "
+                                 "formats: STL, OBJ, PLY, OFF, DAE, GLB") from None
+            if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
+                raise ModelError(f"mesh {self.path}: no triangles")
         mesh = loaded.copy()
         mesh.apply_scale(np.asarray(self.scale, dtype=float))
         return mesh

@@ -178,6 +178,8 @@ def load_robot_reference(reference: str, base_dir: Path, where: str) -> RobotMod
 def _read_robot(entry: Any, base_dir: Path, where: str, models: dict[str, RobotModel]) -> PlacedRobot:
     check_keys(entry, ROBOT_KEYS, where, required=("robot",))
     reference = entry["robot"]
+    if not isinstance(reference, str) or not reference:
+        raise SceneError(f"{where}.robot: expected a bundled robot name or a robot file path, got {reference!r}")
     if reference not in models:
         models[reference] = load_robot_reference(reference, base_dir, where)
     model = models[reference]
