@@ -120,6 +120,15 @@ def test_bad_scene_entries_exit_2(tmp_path, entry, message):
     assert message in " ".join(result.output.split())
 
 
+def test_robot_info_shows_unlimited_lower_limits_as_minus_inf(tmp_path):
+    urdf = tmp_path / "wheel.urdf"
+    urdf.write_text('<robot name="w"><link name="a"/><link name="b"/><joint name="wheel" type="continuous">'
+                    '<parent link="a"/><child link="b"/><axis xyz="0 0 1"/></joint></robot>')
+    result = _run("robot", "info", urdf)
+    assert result.exit_code == 0, result.output
+    assert "-inf rad" in result.output and "inf rad" in result.output.replace("-inf rad", "")
+
+
 def test_demo_writes_png_and_json(tmp_path):
     result = _run("demo", "--out", tmp_path / "out")
     assert result.exit_code == 0, result.output

@@ -27,8 +27,9 @@ robot_app = typer.Typer(help="Inspect robot models.", no_args_is_help=True)
 app.add_typer(robot_app, name="robot")
 
 
-def _fmt(value: float | None, digits: int = 4) -> str:
-    return "inf" if value is None else f"{value:.{digits}f}"
+def _fmt(value: float | None, digits: int = 4, unlimited: str = "inf") -> str:
+    """``value`` with ``digits`` decimals; ``unlimited`` for None (no limit)."""
+    return unlimited if value is None else f"{value:.{digits}f}"
 
 
 @robot_app.command("info")
@@ -47,9 +48,10 @@ def robot_info(
     console.print(f"dof: {info['dof']}   links: {info['n_links']}   root: {info['root_link']}")
     joints = Table("#", "joint", "type", "lower", "upper", "lower (deg)", "upper (deg)", "velocity", title="joints")
     for j in info["joints"]:
-        deg = (_fmt(j.get("lower_deg"), 1), _fmt(j.get("upper_deg"), 1)) if "lower_deg" in j else ("-", "-")
+        deg = (_fmt(j.get("lower_deg"), 1, "-inf"), _fmt(j.get("upper_deg"), 1)) if "lower_deg" in j else ("-", "-")
         unit = "m" if j["type"] == "prismatic" else "rad"
-        joints.add_row(str(j["index"]), j["name"], j["type"], f"{_fmt(j['lower'])} {unit}", f"{_fmt(j['upper'])} {unit}",
+        joints.add_row(str(j["index"]), j["name"], j["type"], f"{_fmt(j['lower'], unlimited='-inf')} {unit}",
+                       f"{_fmt(j['upper'])} {unit}",
                        *deg, _fmt(j["velocity"], 2))
     console.print(joints)
     if info["chains"]:
