@@ -150,3 +150,10 @@ def test_root_transform_propagation_and_limitless_joint():
     np.testing.assert_allclose(poses[model.link_index("Root")], _trans(0, 0, 1.0), atol=1e-12)
     expected = _trans(0, 0, 1.0) @ _rot("x", 0.3) @ _trans(0, 0.1, 0) @ _rot("z", -0.6)
     np.testing.assert_allclose(poses[model.link_index("Follower")], expected, atol=1e-12)
+
+
+def test_a_part_file_loads_alone_and_skips_collision_names_of_its_parent(caplog):
+    """ArmarIII-Head.xml's <IgnoreCollision> names the hip, a node of ArmarIII.xml that includes it."""
+    head = _armar3("ArmarIII-Head.xml")
+    assert head.n_links > 5 and "Hip Yaw" not in head.link_names
+    assert "<IgnoreCollision> names node 'Hip Yaw', which this file does not have; ignored" in caplog.text

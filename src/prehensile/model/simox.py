@@ -419,9 +419,11 @@ def load_simox(path: str | Path, meshes: bool = True) -> RobotModel:
         joints.append(JointSpec(node.name, jtype, parent, node.name, node.T, node.axis, node.lower,
                                 node.upper, node.velocity, mimics.get(node.name), f"RobotNode '{node.name}'"))
     actuated = {n.name for n in robot.nodes.values() if n.jtype != "fixed" and n.name not in mimics}
-    for a, b, where in robot.ignore:
-        if b not in robot.nodes:
-            raise ModelError(f"{where}: <IgnoreCollision> names unknown node '{b}'")
-    disabled = [(a, b) for a, b, _ in robot.ignore]
+    disabled = []
+    for a, b, where in robot.ignore:  # as Simox, which keeps the names unchecked: a part file may name its parent's
+        if b in robot.nodes:
+            disabled.append((a, b))
+        else:
+            log.warning("%s: <IgnoreCollision> names node '%s', which this file does not have; ignored", where, b)
     return build_model(robot.name or path.stem, source, links, joints, _chains(robot, root, actuated),
                        _end_effectors(robot, actuated), disabled)
