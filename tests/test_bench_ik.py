@@ -101,3 +101,12 @@ def test_analytic_on_a_non_nao_chain_is_bad_input():
                                  "--n", "5", "--method", "analytic", "--peers", "none"])
     assert result.exit_code == 2
     assert "not a NAO-type arm" in result.stderr
+
+
+def test_peers_refuse_chains_with_mimic_joints():
+    """NAO's right leg starts at RHipYawPitch, which follows LHipYawPitch: a peer would solve another robot."""
+    for peer in ("pinocchio", "ikpy"):
+        result = runner.invoke(app, ["bench", "ik", "--robot", "nao", "--base", "torso", "--tip", "r_sole", "--n", "5",
+                                     "--peers", peer])
+        assert result.exit_code == 2
+        assert "RHipYawPitch (follows LHipYawPitch)" in " ".join(result.stderr.split())

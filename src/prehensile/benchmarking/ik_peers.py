@@ -225,7 +225,17 @@ class IkpyPeer:
 
 def make_peer(name: str, model: RobotModel, chain: Chain, q_start: np.ndarray, position_tolerance: float,
               rotation_tolerance: float) -> PinocchioDLS | IkpyPeer:
-    """The peer called ``name`` (one of :data:`PEERS`) on ``chain``."""
+    """The peer called ``name`` (one of :data:`PEERS`) on ``chain``; PrehensileError for a
+    chain with mimic joints (the peers load them as independent joints: another robot)."""
+    below_base = set(model.path_to_root(chain.base_link))
+    path = [link for link in model.path_to_root(chain.tip_link) if link not in below_base]
+    mimics = [f"{model.link_joint_names[link]} (follows {model.joint_names[model.joint_q_index[link]]})"
+              for link in path if model.joint_q_index[link] >= 0
+              and model.joint_names[model.joint_q_index[link]] != model.link_joint_names[link]]
+    if mimics:
+        raise PrehensileError(f"peer {name}: the chain {chain.base_link} -> {chain.tip_link} has mimic joints "
+                              f"{', '.join(mimics)}, which the peer loads as independent joints; leave it out "
+                              "(--peers) or pick a chain without them")
     if name == "pinocchio":
         return PinocchioDLS(model, chain, q_start, position_tolerance, rotation_tolerance)
     if name == "ikpy":
