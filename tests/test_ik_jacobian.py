@@ -128,6 +128,30 @@ def test_same_seed_same_result_and_position_only():
     assert np.linalg.norm(solver.tool_pose(a.q)[:3, 3] - point) <= 1e-5 and a.rotation_error == 0.0
 
 
+def test_zero_weight_rows_are_free():
+    """A free world yaw or a free height: targets that differ from the seed's pose only there are
+    met at once, and targets that differ elsewhere are reached in the rows kept."""
+    from prehensile.spatial import rpy_to_matrix
+
+    model = robots.load("panda")
+    q = model.neutral_configuration()
+    q[:7] = [0.1, -0.3, 0.2, -2.0, 0.1, 1.8, 0.7]
+    for weights, row in [((1, 1, 1, 1, 1, 0), 5), ((1, 1, 0, 1, 1, 1), 2)]:
+        solver = ChainSolver(model, "arm", settings=JacobianIKSettings(weights=weights))
+        T = solver.tool_pose(q)
+        moved = T.copy()
+        if row == 5:
+            moved[:3, :3] = rpy_to_matrix([0, 0, 0.5]) @ T[:3, :3]
+        else:
+            moved[2, 3] += 0.05
+        result = solver.solve(moved, q)
+        assert result.success and result.iterations == 0
+        moved[0, 3] += 0.03  # now a kept row differs too
+        result = solve_ik_complete(solver, moved, q, rng=0, settings=CompleteIKSettings(time_budget_s=0.5))
+        reached = solver.tool_pose(result.q)
+        assert result.success and abs(reached[0, 3] - moved[0, 3]) <= 1e-4
+
+
 def test_collision_filter_rejects_colliding_solutions():
     model = robots.load("panda")
     solver = ChainSolver(model, "arm", settings=JacobianIKSettings(position_only=True))

@@ -49,7 +49,8 @@ class JacobianIKSettings:
         max_step_position: Cartesian step clamp, m per iteration.
         max_step_rotation: rotation step clamp, rad per iteration.
         weights: (6,) weights of the task rows: x, y, z (per m) and rotation about x, y, z
-            (per rad); zero drops a row.
+            (per rad, world axes); zero drops a row: it is neither solved for nor checked
+            (the result's errors cover the rows kept).
         position_only: solve for the tool position only (rotation rows dropped).
         damping: lambda_0 of ``dls`` (m).
         gain: factor on every joint step.

@@ -184,7 +184,8 @@ def solve(q, targets, target_index, T_world_root, table, var_of_q, var_q, T_tip_
     ``max_step_rot`` (rad) before each step (Vahrenkamp's LimitCartesianStepSize).
 
     Returns:
-        (outcome, iterations, position error (m), rotation error (rad)) of the final q.
+        (outcome, iterations, position error (m), rotation error (rad)) of the final q, both
+        over the task ``rows`` only.
     """
     n = var_q.shape[0]
     target = targets[target_index]
@@ -200,16 +201,17 @@ def solve(q, targets, target_index, T_world_root, table, var_of_q, var_q, T_tip_
     dq = np.empty(n)
     best = np.inf
     since_best = 0
-    check_rot = False
-    for r in rows:
-        if r >= 3:
-            check_rot = True
     it = 0
     while True:
         chain_pose_jacobian(q, T_world_root, table, var_of_q, T_tip_tcp, frames, pose, jac)
         pose_error(target, pose, err)
-        pos_err = np.sqrt(err[0] ** 2 + err[1] ** 2 + err[2] ** 2)
-        rot_err = np.sqrt(err[3] ** 2 + err[4] ** 2 + err[5] ** 2) if check_rot else 0.0
+        pos2, rot2 = 0.0, 0.0  # over the task rows only: a dropped row is neither solved for nor checked
+        for r in rows:
+            if r < 3:
+                pos2 += err[r] * err[r]
+            else:
+                rot2 += err[r] * err[r]
+        pos_err, rot_err = np.sqrt(pos2), np.sqrt(rot2)
         if pos_err <= tol_pos and rot_err <= tol_rot:
             return CONVERGED, it, pos_err, rot_err
         if it >= max_iterations:

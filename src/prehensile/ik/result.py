@@ -36,7 +36,8 @@ class IKResult:
             solvers return all of them, iterative ones at most one).
         position_error: distance (m) between the target and the reached tip position of ``q``.
         rotation_error: angle (rad) of the rotation between target and reached tip orientation
-            of ``q`` (0 for position-only targets).
+            of ``q`` (0 for position-only targets). Both over the task rows a Jacobian solver
+            keeps (``JacobianIKSettings.weights``).
         iterations: solver iterations summed over all restarts.
         time_s: wall time (s) without numba compilation (:func:`prehensile.clock.clock`).
         target_index: index of the pose reached when the target was a pose set (0 otherwise).
