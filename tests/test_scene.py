@@ -180,6 +180,13 @@ def test_robot_robot_contacts_are_reported(tmp_path):
     assert "b/base_link" in others and "a/base_link" in others
 
 
+def test_an_obstacle_named_like_a_link_is_a_world_contact(tmp_path):
+    scene = yaml.safe_load((DATA / "colliding.yaml").read_text())
+    scene["obstacles"][0]["name"] = "link2"  # the arm's own link name
+    (robot,) = check_scene(load_scene(_write(tmp_path, scene))).robots
+    assert [(c.link, c.other, c.kind) for c in robot.contacts] == [("link2", "link2", "world")]
+
+
 def test_unknown_check_method():
     with pytest.raises(SceneError, match="valid: exact, spheres"):
         check_scene(load_scene(DATA / "free.yaml"), "voxels")

@@ -313,13 +313,19 @@ class ExactChecker:
                 for p, w, s in zip(poses, world, own)]
         return np.array(free, dtype=bool).reshape(q.shape[:-1])
 
-    def collisions(self, q: np.ndarray) -> list[tuple[str, str, float]]:
-        """All contacts of one configuration q (dof,): (link, other, penetration depth m >= 0).
+    def collisions(self, q: np.ndarray, kind: str = "all") -> list[tuple[str, str, float]]:
+        """Contacts of one configuration q (dof,): (link, other, penetration depth m >= 0).
 
         ``other`` is an obstacle name or a link name; each pair of geometries reports once.
+        ``kind``: "world" (robot against obstacles), "self" (link against link) or "all" (world
+        contacts first); an obstacle may share a link's name.
         """
+        if kind not in ("all", "world", "self"):
+            raise PrehensileError(f"ExactChecker.collisions: kind must be 'all', 'world' or 'self', got {kind!r}")
         poses = self._one(q, "collisions")
         world, own = self._gaps(poses)
+        if kind != "all":  # an infinite gap leaves a pair out
+            (own if kind == "world" else world)[:] = np.inf
         out: list[tuple[str, str, float]] = []
         for link, other, a, b in self._candidates(poses[0], world[0], own[0], _SLACK):
             hit, depth = self._collide(a, b, self._contact_request)

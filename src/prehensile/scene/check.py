@@ -119,12 +119,12 @@ def check_scene(scene: Scene, method: str = "exact") -> SceneCheck:
 
 def _check_robot(robot: PlacedRobot, obstacles: list[Obstacle], method: str) -> RobotCheck:
     q = robot.configuration
-    links = set(robot.model.link_names)
     if method == "exact":
         from prehensile.collision import ExactChecker
 
         checker = ExactChecker(robot.model, obstacles, T_world_base=robot.T_world_base)
-        contacts = _merge(robot.name, checker.collisions(q), links)
+        contacts = _merge(robot.name, checker.collisions(q, "world"), "world") + _merge(
+            robot.name, checker.collisions(q, "self"), "self")
         return RobotCheck(robot.name, not contacts, contacts)
     from prehensile.collision import SphereChecker
 
@@ -133,13 +133,11 @@ def _check_robot(robot: PlacedRobot, obstacles: list[Obstacle], method: str) -> 
     return RobotCheck(robot.name, bool(checker.is_free(q)), ())
 
 
-def _merge(robot: str, pairs, links: set[str]) -> tuple[Contact, ...]:
-    """One contact per (link, other) pair with the deepest penetration of its shape pairs."""
+def _merge(robot: str, pairs, kind: str) -> tuple[Contact, ...]:
+    """One contact of ``kind`` ("world" or "self") per (link, other) pair, with the deepest
+    penetration of its shape pairs."""
     deepest: dict[tuple[str, str], float] = {}
     for link, other, depth in pairs:
         key = (str(link), str(other))
         deepest[key] = max(deepest.get(key, 0.0), float(depth))
-    return tuple(
-        Contact(robot, link, other, depth, "self" if other in links else "world")
-        for (link, other), depth in deepest.items()
-    )
+    return tuple(Contact(robot, link, other, depth, kind) for (link, other), depth in deepest.items())
