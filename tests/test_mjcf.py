@@ -183,3 +183,20 @@ def test_locked_joint_becomes_fixed(tmp_path):
     T = forward_kinematics(model, np.array([0.3]))[model.link_index("b")]
     np.testing.assert_allclose(T[:3, 3], data.xpos[2], atol=1e-12)
     np.testing.assert_allclose(T[:3, :3], data.xmat[2].reshape(3, 3), atol=1e-12)
+
+
+def test_a_body_never_collides_with_its_parent_whatever_its_joints(tmp_path):
+    """As MuJoCo's filterparent: a two-hinge wrist overlapping its parent is no self-collision."""
+    from prehensile.collision import ExactChecker
+
+    for joints in ('<joint name="a" axis="1 0 0"/>', '<joint name="a" axis="1 0 0"/><joint name="b" axis="0 1 0"/>'):
+        path = tmp_path / "wrist.xml"
+        path.write_text(f"""<mujoco><worldbody><body name="upper"><joint name="s" axis="0 0 1"/>
+            <geom type="capsule" fromto="0 0 0 0 0 0.3" size="0.04"/>
+            <body name="lower" pos="0 0 0.3">{joints}<geom type="capsule" fromto="0 0 0 0 0 0.3" size="0.04"/>
+            <body name="hand" pos="0 0 0.3"><joint name="h" axis="0 0 1"/><geom type="sphere" size="0.3"/></body></body>
+            </body></worldbody></mujoco>""")
+        model = load_mjcf(path)
+        assert frozenset(("lower", "hand")) in model.disabled_collision_pairs
+        contacts = {(a, b) for a, b, _ in ExactChecker(model, []).collisions(model.neutral_configuration())}
+        assert contacts == {("upper", "hand")}  # the grandparent still collides

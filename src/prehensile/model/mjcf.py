@@ -37,6 +37,8 @@ honoured. Conventions of the result:
   no finite primitive here and are skipped (logged).
 * **Sites** become frame links fixed to their body, named like the site (``<body>__site<k>``
   when unnamed or when the name is taken by a body).
+* **Collision pairs.** A body and its parent body are never checked against each other,
+  whatever the joints between them (MuJoCo's ``filterparent``): disabled collision pairs.
 """
 
 from __future__ import annotations
@@ -191,6 +193,7 @@ def load_mjcf(path: str | Path) -> RobotModel:
     joint_names = {}
     links = [LinkSpec(body_names[0])]
     joints: list[JointSpec] = []
+    parent_pairs: list[tuple[str, str]] = []  # (parent body, body): collision pairs MuJoCo never tests
     for b in range(mj.nbody):
         spec = links[-1] if b == 0 else LinkSpec(body_names[b])
         for g in range(mj.ngeom):
@@ -206,6 +209,8 @@ def load_mjcf(path: str | Path) -> RobotModel:
         links.append(spec)
         body = body_names[b]
         parent = body_names[int(mj.body_parentid[b])]
+        if int(mj.body_parentid[b]) != 0:  # MuJoCo's filterparent: a body never collides with its parent
+            parent_pairs.append((parent, body))
         B = make_pose(quaternion_to_matrix(mj.body_quat[b]), mj.body_pos[b])
         first, count = int(mj.body_jntadr[b]), int(mj.body_jntnum[b])
         ids = list(range(first, first + count)) if count > 0 else []
@@ -257,4 +262,4 @@ def load_mjcf(path: str | Path) -> RobotModel:
         else:
             spec.mimic = (joint_names[leader], multiplier, offset)
     name = root.get("model") or path.stem
-    return build_model(name, source, links, joints)
+    return build_model(name, source, links, joints, disabled_collision_pairs=parent_pairs)
