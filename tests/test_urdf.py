@@ -99,6 +99,8 @@ def test_chain_from_srdf_and_disabled_pairs(tmp_path):
         (lambda t: t.replace('mimic joint="finger_a"', 'mimic joint="ghost"'), "mimics 'ghost'"),
         (lambda t: t.replace("</robot>", "<joint"), "malformed XML"),
         (lambda t: t.replace('<origin xyz="0 0 0.3"/>', '<origin xyz="0 0 nan"/>'), "joint 'elbow' <origin xyz>"),
+        (lambda t: t.replace('velocity="3"', 'velocity="-3"'), "joint 'elbow' <limit>: velocity must be >= 0"),
+        (lambda t: '<robot name="empty"></robot>', "the robot has no links"),
     ],
 )
 def test_malformed_urdf_names_file_element_and_problem(tmp_path, edit, message):

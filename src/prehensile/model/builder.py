@@ -130,6 +130,8 @@ def build_model(
         children[joint.parent].append(joint)
 
     roots = [n for n in link_specs if n not in by_child]
+    if not link_specs:
+        raise ModelError(f"{source}: the robot has no links")
     if not roots:
         raise ModelError(f"{source}: the joints form a cycle (every link has a parent)")
     if len(roots) > 1:

@@ -94,6 +94,8 @@ def _joint(element: ET.Element, source: str) -> JointSpec:
     limit = element.find("limit")
     if limit is not None:
         spec.velocity = number(limit, "velocity", f"{where} <limit>", np.inf)
+        if not spec.velocity >= 0:
+            raise ModelError(f"{where} <limit>: velocity must be >= 0 (rad/s or m/s), got {spec.velocity}")
         if jtype in ("revolute", "prismatic"):
             spec.lower = number(limit, "lower", f"{where} <limit>", 0.0)
             spec.upper = number(limit, "upper", f"{where} <limit>", 0.0)
