@@ -241,8 +241,8 @@ def test_mesh_obstacles_are_covered_by_tight_oriented_boxes(shape):
     inside = np.all(np.abs(local) <= halves + 1e-9, axis=-1).all(axis=1)  # (T, K): all three vertices in box k
     assert inside.any(axis=1).all()
     if shape == "torus":  # the boxes hug the tube: the hole (radius 0.25 m) stays free within 0.2 m
-        hole = np.column_stack([0.2 * np.cos(np.linspace(0, 2 * np.pi, 50)), 0.2 * np.sin(np.linspace(0, 2 * np.pi, 50)),
-                                np.zeros(50)])
+        angle = np.linspace(0, 2 * np.pi, 50)
+        hole = np.column_stack([0.2 * np.cos(angle), 0.2 * np.sin(angle), np.zeros(50)])
         local = np.einsum("kji,pkj->pki", poses[:, :3, :3], hole[:, None] - poses[None, :, :3, 3])
         assert not np.all(np.abs(local) <= halves, axis=-1).any()
     else:  # flat boxes in the faces' planes, within the mesh's bounds: its faces exactly

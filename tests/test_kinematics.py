@@ -102,9 +102,11 @@ def test_base_pose_moves_every_link(erd):
     T_world_base[:3, 3] = [1.0, 2.0, 0.5]
     assert np.allclose(forward_kinematics(model, q, T_world_base), T_world_base @ forward_kinematics(model, q))
     link = model.link_names[-1]
-    for bad, message in [(np.eye(3), r"expected shape \(\.\.\., 4, 4\)"), (np.ones((4, 4)), "upper-left 3x3 block is not a rotation"),
+    for bad, message in [(np.eye(3), r"expected shape \(\.\.\., 4, 4\)"),
+                         (np.ones((4, 4)), "upper-left 3x3 block is not a rotation"),
                          (np.tile(np.eye(4), (2, 1, 1)), r"expected one pose \(4, 4\), got \(2, 4, 4\)")]:
-        for call in (lambda: forward_kinematics(model, q, bad), lambda: frame_jacobian(model, q, link, T_world_base=bad)):
+        for call in (lambda: forward_kinematics(model, q, bad),
+                     lambda: frame_jacobian(model, q, link, T_world_base=bad)):
             with pytest.raises(PrehensileError, match="T_world_base: " + message):
                 call()
     with pytest.raises(PrehensileError, match="T_link_frame: expected shape"):

@@ -54,7 +54,8 @@ def main() -> None:
         later = np.median([run[part] for run in runs[1:]])
         print(f"{part:10s} first scene {1e3 * runs[0][part]:7.1f} ms, later scenes median {1e3 * later:6.1f} ms")
     total = [sum(run.values()) for run in runs]
-    print(f"{'total':10s} first scene {1e3 * total[0]:7.1f} ms, later scenes median {1e3 * np.median(total[1:]):6.1f} ms")
+    later = np.median(total[1:])
+    print(f"{'total':10s} first scene {1e3 * total[0]:7.1f} ms, later scenes median {1e3 * later:6.1f} ms")
 
 
 if __name__ == "__main__":
