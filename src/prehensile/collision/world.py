@@ -8,7 +8,7 @@ import numpy as np
 
 from prehensile.errors import PrehensileError
 from prehensile.model.geometry import Box, Capsule, Cylinder, Mesh, Shape, Sphere
-from prehensile.spatial.transforms import check_pose
+from prehensile.spatial.transforms import check_one_pose
 
 
 class Obstacle(NamedTuple):
@@ -31,9 +31,7 @@ def check_obstacles(obstacles: Sequence[Obstacle], what: str = "obstacles") -> l
             raise PrehensileError(f"{what}[{i}]: expected an Obstacle(name, shape, T_world_shape), "
                                   f"got {type(obstacle).__name__}")
         where = f"{what}[{i}] '{obstacle.name}'"
-        check_pose(obstacle.T_world_shape, f"{where}: T_world_shape")
-        if np.shape(obstacle.T_world_shape) != (4, 4):
-            raise PrehensileError(f"{where}: T_world_shape must be (4, 4), got {np.shape(obstacle.T_world_shape)}")
+        check_one_pose(obstacle.T_world_shape, f"{where}: T_world_shape")
         if not positive_size(obstacle.shape):
             raise PrehensileError(f"{where}: {obstacle.shape} {SHAPE_SIZES}")
     return out

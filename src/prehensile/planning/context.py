@@ -35,7 +35,7 @@ from prehensile.errors import PrehensileError
 from prehensile.model.geometry import Geometry, Shape
 from prehensile.model.robot_model import FIXED, PRISMATIC, REVOLUTE, RobotModel
 from prehensile.planning.cspace import ConfigurationSpace
-from prehensile.spatial.transforms import check_pose
+from prehensile.spatial.transforms import check_one_pose
 
 
 @dataclass(frozen=True, eq=False)
@@ -61,9 +61,7 @@ class AttachedObject:
 
     def __post_init__(self) -> None:
         where = f"AttachedObject '{self.name}'"
-        check_pose(self.T_link_object, f"{where}: T_link_object")
-        if np.shape(self.T_link_object) != (4, 4):
-            raise PrehensileError(f"{where}: T_link_object must be (4, 4), got {np.shape(self.T_link_object)}")
+        check_one_pose(self.T_link_object, f"{where}: T_link_object")
         parts = self.shape if isinstance(self.shape, (list, tuple)) else (self.shape,)
         if not parts:
             raise PrehensileError(f"{where}: no shape given")
@@ -72,7 +70,7 @@ class AttachedObject:
             if not positive_size(shape):
                 raise PrehensileError(f"{where}: {shape} {SHAPE_SIZES}")
             if isinstance(part, Geometry):
-                check_pose(part.T_link_geom, f"{where}: T_link_geom of {part.name or 'a geometry'}")
+                check_one_pose(part.T_link_geom, f"{where}: T_link_geom of {part.name or 'a geometry'}")
 
     def geometries(self) -> tuple[Geometry, ...]:
         """The object's geometries in the object frame."""
@@ -270,10 +268,8 @@ class PlanningContext:
         self.attached = tuple(attached)
         self.resolution = float(resolution)
         self.certify_resolution = float(certify_resolution)
-        self.T_world_base = np.eye(4) if T_world_base is None else np.ascontiguousarray(
-            check_pose(T_world_base, "PlanningContext: T_world_base"))
-        if self.T_world_base.shape != (4, 4):
-            raise PrehensileError(f"PlanningContext: T_world_base must be (4, 4), got {self.T_world_base.shape}")
+        self.T_world_base = np.eye(4) if T_world_base is None else check_one_pose(T_world_base,
+                                                                                  "PlanningContext: T_world_base")
         base_spheres = generate_sphere_model(model) if spheres is None else spheres
         base_acm = allowed_collision_matrix(model) if acm is None else np.asarray(acm, dtype=bool)
         self.collision_model, self.sphere_model, self.acm = attach_objects(model, base_spheres, base_acm, self.attached)
