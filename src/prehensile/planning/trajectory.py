@@ -295,7 +295,7 @@ def time_parameterize(path: np.ndarray, velocity_limits: float | np.ndarray, acc
         more = _excess(qd, qdd, velocity, acceleration)
         if more <= 1.0 + 1e-9:
             break
-        scale *= more
+        scale *= max(more, 1.001)  # the new samples lie elsewhere: at least 0.1 % per round, so this ends
     q[0], q[-1], qd[0], qd[-1] = corners[0], corners[-1], 0.0, 0.0
     return Trajectory(t, q, qd, qdd, tuple(joint_names))
 
