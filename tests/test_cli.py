@@ -159,4 +159,9 @@ def test_check_with_sphere_models():
     assert _run("check", DATA / "free.yaml", "--spheres").exit_code == 0
     colliding = _run("check", DATA / "colliding.yaml", "--spheres", "--json")
     assert colliding.exit_code == 1, colliding.output
-    assert json.loads(colliding.stdout)["method"] == "spheres"
+    report = json.loads(colliding.stdout)
+    assert report["method"] == "spheres" and report["colliding_bodies"] == []  # the balls name no body
+    (arm,) = report["robots"]
+    assert arm["colliding_links"] == ["link2"]  # the link the exact check names too
+    table = _run("check", DATA / "colliding.yaml", "--spheres").output
+    assert "link2" in table and "world" in table

@@ -132,10 +132,11 @@ def print_check(source: str, result) -> None:
     for r in result.robots:
         if r.free:
             table.add_row(r.robot, "-", "[green]free[/]", "", "")
-        elif not r.contacts:
-            table.add_row(r.robot, "[red]?[/]", "[red]colliding[/] (sphere model names no pairs; use --exact)", "", "")
+        elif not r.contacts:  # the balls of the robot's root meet the world: not attributed to a link
+            table.add_row(r.robot, "[red]?[/]", "[red]colliding[/] (no link named; use --exact)", "", "")
         for c in r.contacts:
-            table.add_row(r.robot, f"[red]{c.link}[/]", c.other, c.kind, f"{1000 * c.depth:.1f}")
+            depth = f"{1000 * c.depth:.1f}" if result.method == "exact" else "-"  # the balls measure no depth
+            table.add_row(r.robot, f"[red]{c.link}[/]", c.other, c.kind, depth)
     console.print(table)
     status = "[green]collision-free[/]" if result.free else "[bold red]colliding[/]"
     console.print(f"scene is {status}")

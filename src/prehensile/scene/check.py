@@ -63,7 +63,10 @@ class SceneCheck:
         return {r.robot: r.colliding_links for r in self.robots if r.colliding_links}
 
     def colliding_bodies(self) -> tuple[str, ...]:
-        """Scene bodies touched by any robot, sorted."""
+        """Scene bodies touched by any robot, sorted; () for the sphere method, whose contacts
+        name no body (``other`` is "world")."""
+        if self.method != "exact":
+            return ()
         return tuple(sorted({c.other for r in self.robots for c in r.contacts if c.kind == "world" and "/" not in c.other}))
 
     def to_dict(self) -> dict:
@@ -97,8 +100,8 @@ def check_scene(scene: Scene, method: str = "exact") -> SceneCheck:
     Args:
         scene: the scene; robots use :attr:`PlacedRobot.configuration`.
         method: "exact" (meshes and primitives with coal, reports each pair and its depth) or
-            "spheres" (the robot's sphere model against the world shapes; conservative, and
-            reports only free / colliding per robot, no pairs).
+            "spheres" (the robot's sphere model against the world shapes; conservative: the
+            contacts name the links whose balls overlap, "world" for any obstacle, no depth).
 
     Returns:
         A :class:`SceneCheck`; ``free`` is True when no robot touches anything.
@@ -129,8 +132,11 @@ def _check_robot(robot: PlacedRobot, obstacles: list[Obstacle], method: str) -> 
     from prehensile.collision import SphereChecker
 
     checker = SphereChecker(robot.model, obstacles, T_world_base=robot.T_world_base)
-    # The sphere checker answers free / colliding only; it does not name the pairs.
-    return RobotCheck(robot.name, bool(checker.is_free(q)), ())
+    if checker.is_free(q):
+        return RobotCheck(robot.name, True, ())
+    # the balls name the links, not the obstacle ("world"), and measure no depth
+    return RobotCheck(robot.name, False, tuple(Contact(robot.name, link, other, 0.0, "world" if other == "world"
+                                                       else "self") for link, other in checker.ball_contacts(q)))
 
 
 def _merge(robot: str, pairs, kind: str) -> tuple[Contact, ...]:
