@@ -138,6 +138,19 @@ def test_blended_wiggly_paths_keep_the_limits_at_every_sample():
         assert np.max(np.abs(traj.qdd) / acceleration) > 0.9  # time-optimal: a joint at its limit
 
 
+def test_straight_segments_get_the_exact_time_optimal_profile():
+    # 1 rad at 1 rad/s, 2 rad/s^2: 0.5 s to accelerate, 0.5 s at speed, 0.5 s to brake
+    traj = time_parameterize(np.array([[0.0, 0.0], [1.0, 0.5]]), np.ones(2), np.full(2, 2.0), dt=0.001)
+    assert traj.duration == pytest.approx(1.5) and np.max(np.abs(traj.qd[:, 0])) == pytest.approx(1.0)
+    short = time_parameterize(np.array([[0.0], [0.1]]), 1.0, 2.0)  # a triangle: never at full speed
+    assert short.duration == pytest.approx(2 * np.sqrt(0.1 / 2.0))
+    q = np.zeros(3)
+    for tiny in (1e-5, 1e-6, 1e-7):  # TOPP-RA called such segments uncontrollable
+        path = np.stack([q, q + 0.5, q + 0.5 + [0.0, tiny, 0.0], q + [1.0, 0.0, 0.0]])
+        traj = time_parameterize(path, 2.0, 2.0)
+        assert np.all(np.abs(traj.qd) <= 2.0 * (1 + TOL)) and np.array_equal(traj.q[-1], path[-1])
+
+
 def test_model_limits():
     model, indices, _, velocity, acceleration = _panda_problem()
     assert np.array_equal(velocity, model.velocity_limit[indices])

@@ -12,10 +12,12 @@ a caller-supplied motion check accepts the spline (densely sampled); otherwise t
 is used. Blending matters for dense paths such as an elastic band's, where stopping at every
 waypoint multiplies the duration (about 5x on the Panda band of the tests).
 
-Each piece is parameterized time-optimally under joint velocity and acceleration limits with
-TOPP-RA (Pham & Pham 2018, `toppra`): its solution is a path velocity ``sd(s)`` on a grid of
-path positions with constant path acceleration between gridpoints, which is integrated
-exactly here and sampled at a fixed period.
+Each piece is parameterized time-optimally under joint velocity and acceleration limits as a
+path velocity ``sd(s)`` on a grid of path positions with constant path acceleration between
+gridpoints, integrated exactly here and sampled at a fixed period. A straight segment's
+optimum is known in closed form: accelerate at the largest rate every joint allows, cruise at
+the largest speed, brake (a trapezoid, or a triangle on a short segment; three intervals). The
+spline gets TOPP-RA (Pham & Pham 2018, `toppra`).
 """
 
 from __future__ import annotations
@@ -42,7 +44,6 @@ DEFAULT_ACCELERATION = 2.0
 """Acceleration limit (rad/s^2 or m/s^2); robot descriptions carry none. Conservative: most
 arms accelerate a joint at 5-20 rad/s^2 (Panda datasheet: 7.5-20)."""
 
-_GRID = 100  # TOPP-RA gridpoints per straight segment (the profile is exact up to one grid step)
 _SPLINE_GRID = 8  # TOPP-RA gridpoints per spline segment, knots included (the spline's second derivative kinks there)
 _DUPLICATE_TOL = 1e-9  # rad or m: waypoints closer than this (max-norm) are one waypoint
 
@@ -188,7 +189,20 @@ def _spline(corners: np.ndarray, check: Callable[[np.ndarray, np.ndarray], bool]
     return None
 
 
-def _knots(piece, velocity: np.ndarray, acceleration: np.ndarray, grid: np.ndarray | None):
+def _line_knots(line: _Line, velocity: np.ndarray, acceleration: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Time-optimal rest-to-rest profile of a straight segment: gridpoints s (G,) and path
+    speeds sd (G,) with constant path acceleration between them (the trapezoid's corners)."""
+    moving = line.delta != 0.0
+    top = float(np.min(velocity[moving] / np.abs(line.delta[moving])))  # path speed, 1/s
+    rate = float(np.min(acceleration[moving] / np.abs(line.delta[moving])))  # path acceleration, 1/s^2
+    ramp = min(0.5 * top * top / rate, 0.5)  # path length to reach the top speed
+    peak = np.sqrt(2.0 * rate * ramp)
+    if ramp == 0.5:
+        return np.array([0.0, 0.5, 1.0]), np.array([0.0, peak, 0.0])
+    return np.array([0.0, ramp, 1.0 - ramp, 1.0]), np.array([0.0, peak, peak, 0.0])
+
+
+def _knots(piece, velocity: np.ndarray, acceleration: np.ndarray, grid: np.ndarray):
     """Rest-to-rest TOPP-RA solution of one piece: gridpoints s (G,) and path speeds sd (G,)."""
     constraints = [toppra.constraint.JointVelocityConstraint(velocity),
                    toppra.constraint.JointAccelerationConstraint(acceleration)]
@@ -272,13 +286,11 @@ def time_parameterize(path: np.ndarray, velocity_limits: float | np.ndarray, acc
     blended = _spline(corners, blend_check, blend_step) if blend_check is not None and len(corners) > 2 else None
     if blend_check is not None and len(corners) > 2 and blended is None:
         log.info("time_parameterize: the blended path failed the check; stopping at the %d corners", len(corners) - 2)
-    if blended is not None:
-        pieces, grid = [blended[0]], blended[1]
-    else:
-        pieces, grid = [_Line(a, b) for a, b in zip(corners[:-1], corners[1:])], np.linspace(0.0, 1.0, _GRID + 1)
+    pieces = [blended[0]] if blended is not None else [_Line(a, b) for a, b in zip(corners[:-1], corners[1:])]
     ss, sd, piece_of = [], [], []
     for p, piece in enumerate(pieces):
-        s, v = _knots(piece, velocity, acceleration, grid)
+        s, v = (_knots(piece, velocity, acceleration, blended[1]) if blended is not None
+                else _line_knots(piece, velocity, acceleration))
         ss.append(np.stack([s[:-1], s[1:]], axis=1))
         sd.append(np.stack([v[:-1], v[1:]], axis=1))
         piece_of.append(np.full(len(s) - 1, p))
