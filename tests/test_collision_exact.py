@@ -11,7 +11,7 @@ from prehensile.collision.sphere_checker import SphereChecker
 from prehensile.collision.world import Obstacle
 from prehensile.errors import PrehensileError
 from prehensile.model.builder import JointSpec, LinkSpec, build_model
-from prehensile.model.geometry import Box, Capsule, Cylinder, Geometry, Sphere
+from prehensile.model.geometry import Box, Capsule, Cylinder, Geometry, Mesh, Sphere
 from prehensile.spatial import make_pose
 
 
@@ -226,11 +226,18 @@ def test_flat_mesh_obstacle_is_checked_on_its_triangles():
     ([Obstacle("box", Box((0.1, -0.1, 0.1)), np.eye(4))], "positive size"),
     (Obstacle("box", Box((0.1, 0.1, 0.1)), np.eye(4)), "got one Obstacle"),
     ([Obstacle("box", Box((0.1, 0.1, 0.1)), np.eye(3))], "T_world_shape"),
+    ([Obstacle("empty", Mesh.from_arrays(np.zeros((0, 3)), np.zeros((0, 3))), np.eye(4))], r"Mesh \(with triangles\)"),
 ])
 def test_bad_obstacles_are_errors_naming_them(obstacles, message):
     for checker in (ExactChecker, SphereChecker):
         with pytest.raises(PrehensileError, match=message):
             checker(_arm(), obstacles)
+
+
+def test_a_pose_given_as_nested_lists_is_a_pose():
+    pose = make_pose(position=[0.5, 0.0, 0.3]).tolist()
+    for checker in (ExactChecker, SphereChecker):
+        assert not checker(_arm(), [Obstacle("ball", Sphere(0.15), pose)]).is_free(np.zeros(2))
 
 
 def test_single_configuration_queries_reject_a_batch():

@@ -21,8 +21,9 @@ class Obstacle(NamedTuple):
 
 
 def check_obstacles(obstacles: Sequence[Obstacle], what: str = "obstacles") -> list[Obstacle]:
-    """The obstacles as a list, each checked: an :class:`Obstacle` with a rigid pose and a shape of
-    positive size (a zero-length capsule is a ball). Raises PrehensileError naming the first bad one."""
+    """The obstacles as a list, each checked: an :class:`Obstacle` with a rigid pose (returned as a
+    (4, 4) float array) and a shape of positive size (a zero-length capsule is a ball, a mesh has
+    triangles). Raises PrehensileError naming the first bad one."""
     if isinstance(obstacles, Obstacle):
         raise PrehensileError(f"{what}: expected a list of Obstacle, got one Obstacle")
     out = list(obstacles)
@@ -31,14 +32,14 @@ def check_obstacles(obstacles: Sequence[Obstacle], what: str = "obstacles") -> l
             raise PrehensileError(f"{what}[{i}]: expected an Obstacle(name, shape, T_world_shape), "
                                   f"got {type(obstacle).__name__}")
         where = f"{what}[{i}] '{obstacle.name}'"
-        check_one_pose(obstacle.T_world_shape, f"{where}: T_world_shape")
+        out[i] = obstacle._replace(T_world_shape=check_one_pose(obstacle.T_world_shape, f"{where}: T_world_shape"))
         if not positive_size(obstacle.shape):
             raise PrehensileError(f"{where}: {obstacle.shape} {SHAPE_SIZES}")
     return out
 
 
 SHAPE_SIZES = ("needs a positive size (m); valid shapes: Box(size (3,)), Sphere(radius), Cylinder(radius, length), "
-               "Capsule(radius, length >= 0), Mesh")
+               "Capsule(radius, length >= 0), Mesh (with triangles)")
 
 
 def positive_size(shape: Shape) -> bool:
@@ -51,4 +52,5 @@ def positive_size(shape: Shape) -> bool:
         return shape.radius > 0 and shape.length > 0
     if isinstance(shape, Capsule):
         return shape.radius > 0 and shape.length >= 0
-    return isinstance(shape, Mesh) and bool(np.all(np.asarray(shape.scale, dtype=float) > 0))
+    return (isinstance(shape, Mesh) and bool(np.all(np.asarray(shape.scale, dtype=float) > 0))
+            and len(shape.trimesh.faces) > 0)
