@@ -187,6 +187,15 @@ def test_an_obstacle_named_like_a_link_is_a_world_contact(tmp_path):
     assert [(c.link, c.other, c.kind) for c in robot.contacts] == [("link2", "link2", "world")]
 
 
+def test_the_documented_example_scene_loads_and_is_free(tmp_path):
+    import re
+
+    text = (Path(__file__).parents[1] / "docs" / "scenes.md").read_text()
+    example = tmp_path / "example.yaml"
+    example.write_text(re.search(r"```yaml\n(.*?)```", text, re.S).group(1))
+    assert check_scene(load_scene(example)).free
+
+
 def test_unknown_check_method():
     with pytest.raises(SceneError, match="valid: exact, spheres"):
         check_scene(load_scene(DATA / "free.yaml"), "voxels")
