@@ -203,7 +203,10 @@ def test_bounding_ball_and_hull_broadphase_answers_as_every_pair(robot):
         contacts, distances = _every_pair(checker, x)
         assert checker.is_free(x) == (not contacts)
         assert {(link, other) for link, other, _ in checker.collisions(x)} == contacts
-        assert checker.min_distance(x) == pytest.approx(min(distances.values()), abs=1e-9)
+        if contacts:  # a touching mesh is measured by its hull's penetration, coal's mesh distance is 0 there
+            assert checker.min_distance(x) <= min(distances.values()) + 1e-9
+        else:
+            assert checker.min_distance(x) == pytest.approx(min(distances.values()), abs=1e-9)
         near = {(p.link, p.other): p.distance for p in checker.closest_points(x, max_distance=0.1)}
         world = {o.name for o in obstacles}
         assert near == pytest.approx({k: d for k, d in distances.items() if k[1] in world and d <= 0.1}, abs=1e-9)
@@ -286,3 +289,21 @@ def test_robot_parts_are_prepared_once_per_model_and_enclose_their_geometry():
     del model, checker, certifier
     gc.collect()
     assert released() is None  # the cache does not keep a model alive
+
+
+def test_a_mesh_reports_the_depth_of_the_box_it_is():
+    """coal's mesh contacts carry no meaningful depth: a box-shaped mesh reports its hull's."""
+    import trimesh
+
+    slab = trimesh.creation.box(extents=(0.3, 0.3, 0.06))
+    pose = make_pose(position=[0.5, 0.0, 0.32])  # through the upper link's ball (r 0.1 at z 0.3)
+    reports = []
+    for shape in (Box((0.3, 0.3, 0.06)), Mesh.from_arrays(slab.vertices, slab.faces)):
+        checker = ExactChecker(_arm(), [Obstacle("slab", shape, pose)])
+        reports.append((checker.collisions(np.zeros(2)), float(checker.min_distance(np.zeros(2)))))
+    (box_contacts, box_distance), (mesh_contacts, mesh_distance) = reports
+    assert [(link, other) for link, other, _ in box_contacts] == [("upper", "slab")]
+    assert box_contacts[0][2] == pytest.approx(0.11, abs=1e-6)  # the ball's top is 0.11 m above the slab's bottom
+    assert [c[:2] for c in mesh_contacts] == [c[:2] for c in box_contacts]
+    assert mesh_contacts[0][2] == pytest.approx(box_contacts[0][2], abs=1e-6)
+    assert mesh_distance == pytest.approx(box_distance, abs=1e-6) and box_distance < 0

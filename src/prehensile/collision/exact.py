@@ -93,6 +93,11 @@ _SLACK = 1e-5  # m: bounds this far apart may still hold geometries that coal fi
 _EXACT, _BOUND, _POSE = 0, 1, 2  # a placed geometry: (exact, convex bound, coal transform)
 
 
+def _convex(placed: tuple) -> bool:
+    """The placed geometry is its own convex bound (a primitive, or a flat mesh without a hull)."""
+    return placed[_BOUND] is placed[_EXACT]
+
+
 def enclosing_ball(shape: Shape, T: np.ndarray) -> tuple[np.ndarray, float]:
     """Centre (3,) and radius (m) of a ball containing ``shape`` placed at the pose T (4, 4)
     (the centre in T's parent frame)."""
@@ -301,8 +306,15 @@ class ExactChecker:
         hit = coal.collide(a[_EXACT], a[_POSE], b[_EXACT], b[_POSE], request, result) > 0
         depth = 0.0
         if hit and request.enable_contact:
-            depth = max((abs(c.penetration_depth) for c in result.getContacts()), default=0.0)
+            depth = (max((abs(c.penetration_depth) for c in result.getContacts()), default=0.0)
+                     if _convex(a) and _convex(b) else self._mesh_depth(a, b))
         return hit, depth
+
+    def _mesh_depth(self, a, b) -> float:
+        """Penetration depth (m) of touching placed geometries of which one is a mesh: that of
+        their convex hulls (coal's mesh contacts carry no meaningful depth; exact for convex
+        meshes)."""
+        return max(-self._distance(a, b, _BOUND), 0.0)
 
     def is_free(self, q: np.ndarray) -> np.ndarray:
         """(*batch,) bool: no non-allowed pair touches, for q (*batch, dof) (rad or m)."""
@@ -314,7 +326,8 @@ class ExactChecker:
         return np.array(free, dtype=bool).reshape(q.shape[:-1])
 
     def collisions(self, q: np.ndarray, kind: str = "all") -> list[tuple[str, str, float]]:
-        """Contacts of one configuration q (dof,): (link, other, penetration depth m >= 0).
+        """Contacts of one configuration q (dof,): (link, other, penetration depth m >= 0; where a
+        mesh touches, the depth of the convex hulls).
 
         ``other`` is an obstacle name or a link name; each pair of geometries reports once.
         ``kind``: "world" (robot against obstacles), "self" (link against link) or "all" (world
@@ -340,14 +353,18 @@ class ExactChecker:
 
     def min_distance(self, q: np.ndarray) -> np.ndarray:
         """(*batch,) smallest distance (m) over all checked pairs; negative when penetrating
-        (coal's signed distance; +inf when nothing is checked)."""
+        (coal's signed distance; where a mesh touches, minus the depth of the convex hulls; +inf
+        when nothing is checked)."""
         q = np.asarray(q, dtype=float)
         poses = self._poses(q)
         world, own = self._gaps(poses)
         out = np.full(len(poses), np.inf)
         for b, (p, w, s) in enumerate(zip(poses, world, own)):
             for _, _, x, y in self._candidates(p, w, s, np.inf):
-                out[b] = min(out[b], self._distance(x, y))
+                d = self._distance(x, y)
+                if d <= 0.0 and not (_convex(x) and _convex(y)):  # a mesh touches: measure how deep
+                    d = -self._mesh_depth(x, y)
+                out[b] = min(out[b], d)
         return out.reshape(q.shape[:-1])
 
     def closest_points(self, q: np.ndarray, max_distance: float = np.inf) -> list[ClosestPair]:
