@@ -53,7 +53,7 @@ def test_jplus_rrt_reaches_a_grasp(panda_scene):
     target = goals[result.goal_index]
     assert np.linalg.norm(tool[:3, 3] - target[:3, 3]) <= settings.position_tolerance
     assert np.linalg.norm(rotation_error(target[:3, :3], tool[:3, :3])) <= settings.rotation_tolerance
-    again = jplus_rrt(ctx, q0, goals, settings=settings, rng=np.random.default_rng(1))  # a seed or its generator
+    again = jplus_rrt(ctx, q0, goals, settings, np.random.default_rng(1))  # as rrt_connect; a seed or its generator
     assert np.array_equal(again.path, result.path)
 
 

@@ -195,17 +195,19 @@ class _GraspPairGoals:
         return {"grasps": (int(i), int(j)), "object_index": int(p), "T_world_object": T}
 
 
-def jplus_rrt(ctx: PlanningContext, q_start: np.ndarray, target_poses: np.ndarray, T_tip_tcp: np.ndarray | None = None,
-              settings: JPlusRRTSettings = JPlusRRTSettings(), rng: np.random.Generator | int | None = None,
-              chain: str | None = None) -> PlanResult:
-    """Plan from ``q_start`` until the tool reaches any of ``target_poses``.
+def jplus_rrt(ctx: PlanningContext, q_start: np.ndarray, target_poses: np.ndarray,
+              settings: JPlusRRTSettings = JPlusRRTSettings(), rng: np.random.Generator | int | None = None, *,
+              T_tip_tcp: np.ndarray | None = None, chain: str | None = None) -> PlanResult:
+    """Plan from ``q_start`` until the tool reaches any of ``target_poses`` (arguments in the
+    order of :func:`~prehensile.planning.rrt_connect.rrt_connect`).
 
     Args:
         ctx: planning context; it plans exactly the joints of the tool's chain (in any order).
         q_start: (dof,) start configuration.
         target_poses: (k, 4, 4) world tool poses, e.g. ``T_world_object @ grasps``.
-        T_tip_tcp: (4, 4) tool frame on the chain's tip link.
+        settings: :class:`JPlusRRTSettings`.
         rng: random source or seed (:func:`~prehensile.planning.seeding.planner_rng`: seed 0 if None).
+        T_tip_tcp: (4, 4) tool frame on the chain's tip link.
         chain: the tool's chain (its tip link carries the tool); default: the chain of the
             planned joints, which must be unambiguous (SRDF groups with the same joints and
             different tips need a name).
