@@ -244,7 +244,8 @@ def time_parameterize(path: np.ndarray, velocity_limits: float | np.ndarray, acc
     since the spline may overshoot); otherwise the polyline is used. Limits are enforced at
     the TOPP-RA gridpoints (the spline's knots among them) and checked again between them and
     at every returned sample; any residual excess (numerical, or between gridpoints) is
-    removed by slowing the whole motion uniformly, so every sample meets the limits.
+    removed by slowing the whole motion uniformly, so every sample meets the limits (to a
+    relative 1e-9, for rounding).
 
     Args:
         path: (N, n) waypoints (rad or m), N >= 1.
