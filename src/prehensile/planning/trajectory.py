@@ -202,8 +202,8 @@ def _line_knots(line: _Line, velocity: np.ndarray, acceleration: np.ndarray) -> 
     return np.array([0.0, ramp, 1.0 - ramp, 1.0]), np.array([0.0, peak, peak, 0.0])
 
 
-def _knots(piece, velocity: np.ndarray, acceleration: np.ndarray, grid: np.ndarray):
-    """Rest-to-rest TOPP-RA solution of one piece: gridpoints s (G,) and path speeds sd (G,)."""
+def _toppra_knots(piece, velocity: np.ndarray, acceleration: np.ndarray, grid: np.ndarray):
+    """Rest-to-rest TOPP-RA solution of a piece on ``grid``: gridpoints s (G,) and path speeds sd (G,)."""
     constraints = [toppra.constraint.JointVelocityConstraint(velocity),
                    toppra.constraint.JointAccelerationConstraint(acceleration)]
     algorithm = toppra.algorithm.TOPPRA(constraints, piece, gridpoints=grid, solver_wrapper="seidel")
@@ -290,7 +290,7 @@ def time_parameterize(path: np.ndarray, velocity_limits: float | np.ndarray, acc
     pieces = [blended[0]] if blended is not None else [_Line(a, b) for a, b in zip(corners[:-1], corners[1:])]
     ss, sd, piece_of = [], [], []
     for p, piece in enumerate(pieces):
-        s, v = (_knots(piece, velocity, acceleration, blended[1]) if blended is not None
+        s, v = (_toppra_knots(piece, velocity, acceleration, blended[1]) if blended is not None
                 else _line_knots(piece, velocity, acceleration))
         ss.append(np.stack([s[:-1], s[1:]], axis=1))
         sd.append(np.stack([v[:-1], v[1:]], axis=1))
