@@ -55,6 +55,8 @@ def test_mimic_finger_moves_opposite(tmp_path):
     poses = forward_kinematics(model, q)
     a, b, s = (poses[model.link_index(n), :3, 3] for n in ("finger_a", "finger_b", "slider"))
     assert np.allclose(a - s, -(b - s)) and np.isclose(np.linalg.norm(a - s), 0.03)
+    assert model.mimic_of("finger_b") == "finger_a"
+    assert model.mimic_of("finger_a") is None and model.mimic_of("base") is None
 
 
 def test_planar_joint_expands_to_x_y_theta(tmp_path):

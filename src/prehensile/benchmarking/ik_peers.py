@@ -229,9 +229,8 @@ def make_peer(name: str, model: RobotModel, chain: Chain, q_start: np.ndarray, p
     chain with mimic joints (the peers load them as independent joints: another robot)."""
     below_base = set(model.path_to_root(chain.base_link))
     path = [link for link in model.path_to_root(chain.tip_link) if link not in below_base]
-    mimics = [f"{model.link_joint_names[link]} (follows {model.joint_names[model.joint_q_index[link]]})"
-              for link in path if model.joint_q_index[link] >= 0
-              and model.joint_names[model.joint_q_index[link]] != model.link_joint_names[link]]
+    mimics = [f"{model.link_joint_names[link]} (follows {model.mimic_of(link)})" for link in path
+              if model.mimic_of(link)]
     if mimics:
         raise PrehensileError(f"peer {name}: the chain {chain.base_link} -> {chain.tip_link} has mimic joints "
                               f"{', '.join(mimics)}, which the peer loads as independent joints; leave it out "

@@ -134,7 +134,7 @@ def _arm(model: RobotModel, chain: str) -> _Arm:
         k, name = len(origins), model.link_joint_names[link]
         if model.joint_type[link] != REVOLUTE or k >= n or name != spec.joint_names[k]:
             raise _not_nao(model, chain, f"unexpected joint '{name}' on the path to the tip")
-        if model.joint_multiplier[link] != 1.0 or model.joint_offset[link] != 0.0:
+        if model.mimic_of(link):
             raise _not_nao(model, chain, f"joint '{name}' is a mimic joint")
         if not np.allclose(model.joint_axis[link], _AXES[k], atol=1e-9):
             raise _not_nao(model, chain, f"joint '{name}' has axis {model.joint_axis[link]}, expected {_ROLES[k]}")

@@ -188,6 +188,18 @@ class RobotModel:
             index = int(self.link_parent[index])
         return path
 
+    def mimic_of(self, link: str | int) -> str | None:
+        """Name of the joint whose variable moves ``link``'s joint if that joint is a mimic joint
+        (it follows another joint, scaled or offset), else None."""
+        index = self.link_index(link) if isinstance(link, str) else int(link)
+        q_index = int(self.joint_q_index[index])
+        if q_index < 0:
+            return None
+        leader = self.joint_names[q_index]
+        mimics = (leader != self.link_joint_names[index] or self.joint_multiplier[index] != 1.0
+                  or self.joint_offset[index] != 0.0)
+        return leader if mimics else None
+
     def neutral_configuration(self) -> np.ndarray:
         """Zero clipped into the limits, shape (dof,)."""
         return np.clip(np.zeros(self.dof), self.lower, self.upper)
