@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import trimesh
 
 from prehensile.collision.acm import allowed_collision_matrix, compute_acm, rigid_bodies
 from prehensile.collision.exact import ExactChecker
@@ -12,7 +13,7 @@ from prehensile.collision.world import Obstacle
 from prehensile.errors import PrehensileError
 from prehensile.model.builder import JointSpec, LinkSpec, build_model
 from prehensile.model.geometry import Box, Capsule, Cylinder, Geometry, Mesh, Sphere
-from prehensile.spatial import make_pose
+from prehensile.spatial import make_pose, rpy_to_matrix
 
 
 def _arm():
@@ -167,11 +168,19 @@ def _every_pair(checker: ExactChecker, q: np.ndarray) -> tuple[set, dict]:
     return contacts, distances
 
 
+def _box_mesh(size) -> Mesh:
+    """A box (full sides, m) as a 12-triangle mesh."""
+    box = trimesh.creation.box(extents=size)
+    return Mesh.from_arrays(box.vertices, box.faces)
+
+
 BROADPHASE_CASES = {  # robot, planned chain, obstacles: ARMAR-III's primitives, the Panda's meshes
     "armar3": ("TorsoRightArm", [Obstacle("table", Box((0.8, 0.5, 0.04)), make_pose(position=[0.2, 0.6, 0.95])),
                                  Obstacle("post", Cylinder(0.04, 0.8), make_pose(position=[0.45, 0.5, 1.2]))]),
     "panda": ("arm", [Obstacle("table", Box((0.6, 0.8, 0.04)), make_pose(position=[0.5, 0.0, 0.3])),
-                      Obstacle("post", Cylinder(0.04, 0.8), make_pose(position=[0.3, 0.3, 0.4]))]),
+                      Obstacle("post", Cylinder(0.04, 0.8), make_pose(position=[0.3, 0.3, 0.4])),
+                      Obstacle("board", _box_mesh((0.3, 0.02, 0.4)), make_pose(rpy_to_matrix([0.3, 0.0, 0.5]),
+                                                                               position=[-0.3, -0.4, 0.5]))]),
 }
 
 
@@ -222,6 +231,17 @@ def test_flat_mesh_obstacle_is_checked_on_its_triangles():
         checker = ExactChecker(model, [Obstacle("plate", plate, make_pose(position=[0.0, 0.0, height]))])
         assert checker.is_free(np.zeros(2)) == free
         assert (checker.min_distance(np.zeros(2)) <= 0) == (not free)
+
+
+def test_a_flat_mesh_floor_is_bounded_by_a_flat_box():
+    """The broadphase bounds a mesh obstacle by its oriented box: under a floor of many
+    triangles every geometry's lower bound is its enclosing ball's height above the floor."""
+    floor = Obstacle("floor", _box_mesh((4.0, 4.0, 0.0)), make_pose(rpy_to_matrix([0.0, 0.0, 0.4]), position=[0.0, 0.0, -0.2]))
+    checker = ExactChecker(_arm(), [floor])
+    centers = checker._centers(checker._poses(np.array([0.3, -0.5])))
+    expected = centers[0, checker._world_pairs[:, 0], 2] + 0.2 - checker._part_radius[checker._world_pairs[:, 0]]
+    assert checker._world_gaps(centers)[0] == pytest.approx(expected, abs=1e-9)
+    assert checker.is_free(np.array([0.3, -0.5]))
 
 
 @pytest.mark.parametrize("obstacles, message", [
@@ -293,12 +313,10 @@ def test_robot_parts_are_prepared_once_per_model_and_enclose_their_geometry():
 
 def test_a_mesh_reports_the_depth_of_the_box_it_is():
     """coal's mesh contacts carry no meaningful depth: a box-shaped mesh reports its hull's."""
-    import trimesh
 
-    slab = trimesh.creation.box(extents=(0.3, 0.3, 0.06))
     pose = make_pose(position=[0.5, 0.0, 0.32])  # through the upper link's ball (r 0.1 at z 0.3)
     reports = []
-    for shape in (Box((0.3, 0.3, 0.06)), Mesh.from_arrays(slab.vertices, slab.faces)):
+    for shape in (Box((0.3, 0.3, 0.06)), _box_mesh((0.3, 0.3, 0.06))):
         checker = ExactChecker(_arm(), [Obstacle("slab", shape, pose)])
         reports.append((checker.collisions(np.zeros(2)), float(checker.min_distance(np.zeros(2)))))
     (box_contacts, box_distance), (mesh_contacts, mesh_distance) = reports

@@ -19,9 +19,10 @@ from prehensile.collision.acm import allowed_collision_matrix
 from prehensile.collision.world import Obstacle, check_obstacles
 from prehensile.errors import PrehensileError
 from prehensile.kinematics.forward import forward_kinematics
-from prehensile.model.geometry import Box, Capsule, Cylinder, Mesh, Shape, Sphere
+from prehensile.collision.sphere_fit import box_cover, geometry_triangles
+from prehensile.model.geometry import Box, Capsule, Cylinder, Geometry, Mesh, Shape, Sphere
 from prehensile.model.robot_model import RobotModel
-from prehensile.spatial.transforms import check_one_pose, make_pose
+from prehensile.spatial.transforms import check_one_pose
 
 
 def coal_geometry(shape: Shape):
@@ -201,13 +202,16 @@ class ExactChecker:
         self.acm = allowed_collision_matrix(model) if acm is None else np.asarray(acm, dtype=bool)
         self.obstacles = check_obstacles(obstacles)
         self._obstacles = []  # (name, exact, convex bound, transform)
-        self._obstacle_bounds = []  # (primitive, pose): the obstacle, or the ball enclosing a mesh
+        self._obstacle_bounds = []  # (primitive, pose): the obstacle, or the box holding a mesh
         for o in self.obstacles:
             exact = coal_geometry(o.shape)
             self._obstacles.append((o.name, exact, convex_bound(o.shape, exact), coal_transform(o.T_world_shape)))
-            center, radius = enclosing_ball(o.shape, o.T_world_shape)
-            self._obstacle_bounds.append((Sphere(radius), make_pose(position=center)) if isinstance(o.shape, Mesh)
-                                         else (o.shape, np.asarray(o.T_world_shape, dtype=float)))
+            T = np.asarray(o.T_world_shape, dtype=float)
+            if isinstance(o.shape, Mesh):  # a flat mesh (a floor) gets a flat box
+                (T_shape_box,), (half,) = box_cover(geometry_triangles(Geometry(o.shape)), 1)
+                self._obstacle_bounds.append((Box(tuple(2.0 * half)), T @ T_shape_box))
+            else:
+                self._obstacle_bounds.append((o.shape, T))
         self._parts = robot_parts(model)
         links = [i for i, g in enumerate(model.collisions) if g]
         self_pairs = [(i, j) for a, i in enumerate(links) for j in links[a + 1:] if not self.acm[i, j]]
@@ -245,7 +249,7 @@ class ExactChecker:
     def _world_gaps(self, centers: np.ndarray) -> np.ndarray:
         """Lower bounds (B, W) (m) on the distance of every world pair, from the geometries'
         enclosing balls (centres (B, G, 3)) against the obstacles' own primitives
-        (:func:`point_distance`) or a mesh's enclosing ball."""
+        (:func:`point_distance`) or the oriented box holding a mesh."""
         to_obstacle = np.zeros(centers.shape[:2] + (len(self.obstacles),))
         for k, (shape, T) in enumerate(self._obstacle_bounds):
             to_obstacle[..., k] = point_distance(shape, T, centers)
