@@ -289,8 +289,7 @@ class SphereChecker:
         if self.static_hit:
             free[:], near[:] = False, True
         else:
-            K.screen_batch(flat, self.data, self._world_only[0], self._scratch, self._scales, self._world_only[1],
-                           float(margin), free, near)
+            K.screen_batch(flat, self.data, self._scratch, self._scales, self._world_only[1], float(margin), free, near)
         return free.reshape(q.shape[:-1]), near.reshape(q.shape[:-1])
 
     def first_collision(self, q_path: np.ndarray) -> int:

@@ -256,10 +256,12 @@ def clearance_batch(qs, data, scratch, cap, scales, out):
 
 
 @njit(cache=True, fastmath=FAST)
-def screen_batch(qs, data, world, scratch, scales, world_scales, margin, free, near):
+def screen_batch(qs, data, scratch, scales, world_scales, margin, free, near):
     """For configurations qs (B, dof): free[b] = qs[b] is free (as :func:`check_batch`), near[b] =
-    some ball is closer than ``margin`` (m) to an obstacle (``world``: ``data`` without self
-    pairs; ``world_scales`` its :func:`unit_scales`). One compiled call for both tests."""
+    some ball is closer than ``margin`` (m) to an obstacle (``world_scales``: :func:`unit_scales`
+    of ``data``). One compiled call for both tests, given ``data`` once (each array passed
+    costs the call time)."""
+    world = data[:-1] + (data[-1][:0],)  # without self pairs
     for b in range(qs.shape[0]):
         free[b] = clearance(qs[b], data, scratch, 0.0, scales, 0.0) >= 0.0
         near[b] = clearance(qs[b], world, scratch, margin, world_scales, 0.0) < margin
