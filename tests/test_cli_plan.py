@@ -91,6 +91,7 @@ def test_goal_in_collision_exits_1(tmp_path):
     path = json.loads((tmp_path / "path.json").read_text())
     assert path["status"] == "invalid_goal" and path["waypoints"] == []
     assert "collides with wall" in path["reason"] and "goal: panda_" in result.output
+    assert "--ball-radius" not in path["reason"]  # finer balls cannot help an end that collides
     assert path["goal"] == pytest.approx([float(v) for v in IN_THE_WALL])
     assert not (tmp_path / "trajectory.json").exists() and (tmp_path / "plan.png").is_file()
 

@@ -297,6 +297,28 @@ def test_goal_the_balls_reject_is_reached_by_a_certified_escape(arm):
         is PlanStatus.INVALID_GOAL
 
 
+def test_a_start_the_balls_accept_near_an_obstacle_needs_no_escape():
+    """A start within half a resolution of an obstacle whose balls no motion moves away (a
+    post spinning about its own axis beside a box) has no escape; it is a node all the same,
+    and the plan must not spend its budget searching one."""
+    links = [LinkSpec("base"), LinkSpec("post", collisions=[Geometry(Capsule(0.04, 0.3), make_pose(position=[0, 0, 0.2]))]),
+             LinkSpec("arm", collisions=[Geometry(Capsule(0.03, 0.3), make_pose(ALONG_X, [0.2, 0, 0]))])]
+    joints = [JointSpec("spin", "revolute", "base", "post", np.eye(4), [0, 0, 1.0], -3.0, 3.0),
+              JointSpec("lift", "revolute", "post", "arm", make_pose(position=[0, 0, 0.45]), [0, 1.0, 0], -1.0, 1.0)]
+    model = build_model("spinner", "test", links, joints)
+    spheres = generate_sphere_model(model, cache=False)
+    post = spheres.sphere_link == model.link_index("post")
+    reach = float(np.max(np.linalg.norm(spheres.centers[post, :2], axis=1) + spheres.radii[post]))
+    box = _box("box", [reach + 0.001 + 0.05, 0.0, 0.2], [0.1, 0.1, 0.1])  # 1 mm beside the post's balls
+    ctx = PlanningContext(model, [box], spheres=spheres)
+    start, goal = np.zeros(2), np.array([2.0, 0.5])
+    assert ctx.is_valid(start) and ctx.spheres.clearance(start, 0.01, self_pairs=False) < 0.5 * ctx.resolution
+    budget = 5.0
+    result = rrt_connect(ctx, start, goal, RRTConnectSettings(time_budget_s=budget), rng=0)
+    _check_result(ctx, result, start, goal)
+    assert result.info["escapes"] == 0 and result.stats.plan_time_s < 0.5 * budget  # not spent searching an escape
+
+
 def test_path_failing_certification_is_planned_again_on_the_cover(arm):
     """Thin balls slip through a slot narrower than the links; their path fails the exact
     certification, and covering balls on the links that collided make the planner go around

@@ -156,13 +156,14 @@ def _end_reason(status, ctx, q_start: np.ndarray, q_goal: np.ndarray | None) -> 
 
     ends = {PlanStatus.INVALID_START: [("start", q_start)], PlanStatus.INVALID_GOAL: [("goal", q_goal)],
             PlanStatus.TIMEOUT: [("start", q_start), ("goal", q_goal)]}.get(status, [])
-    reasons = []
+    reasons, balls_only = [], False
     for name, q in ends:
         why = "" if q is None else ctx.why_invalid(q)
         if why:
             reasons.append(f"{name}: {why}")
-    if status is PlanStatus.TIMEOUT and reasons:
-        reasons.append("finer balls (--ball-radius, e.g. 0.04) may make such ends valid")
+            balls_only |= bool(ctx.model.within_limits(q) and ctx.exact.is_free(q))
+    if balls_only:
+        reasons.append("finer balls (a --ball-radius below the links' balls) may make such ends valid")
     return "; ".join(reasons) or None
 
 

@@ -90,8 +90,10 @@ class RRTConnectSettings:
             than half the resolution from the world, gets a short straight escape motion
             certified on the exact geometry (:func:`~prehensile.planning.certify.certified_escape`)
             as its first tree edge: the conservative balls of a grasp in contact range of the
-            object would otherwise make it unreachable. The start tries directions until the
-            budget runs out (TIMEOUT if none is found), each goal 64 (INVALID_GOAL if none).
+            object would otherwise make it unreachable. A start the balls reject tries
+            directions until the budget runs out (TIMEOUT if none is found); a start they accept
+            and each goal try 64 (a goal the balls reject is then INVALID_GOAL; an end they
+            accept stays a node without an escape).
     """
 
     time_budget_s: float = 1.0
@@ -343,10 +345,11 @@ class _Trees:
 def _endpoints(ctx: PlanningContext, qs: np.ndarray, toward: np.ndarray, settings: RRTConnectSettings,
                rng: np.random.Generator, deadline: float, persistent: int = 0) -> list[list | None]:
     """Per configuration of qs (k, dof): its tree nodes [(q, -1, flags)] plus, if it needs one,
-    its certified escape node [(escape, 0, _CHECKED)] (moving toward ``toward`` (k, dof); the
-    first ``persistent`` rows try directions until ``deadline`` (s, :func:`~prehensile.clock.clock`),
-    the others ``ESCAPE_ATTEMPTS`` directions or until then); None if it is unusable (outside
-    the limits, or colliding for the balls without an escape)."""
+    its certified escape node [(escape, 0, _CHECKED)] (moving toward ``toward`` (k, dof); of
+    the first ``persistent`` rows, those the balls reject try directions until ``deadline`` (s,
+    :func:`~prehensile.clock.clock`), every other row ``ESCAPE_ATTEMPTS`` directions or until
+    then: a row the balls accept is a node without one); None if it is unusable (outside the
+    limits, or colliding for the balls without an escape)."""
     inside = ctx.model.within_limits(qs) & ctx.static_free(qs)  # no escape from a static contact
     free, near = ctx.spheres.screen(qs, 0.5 * ctx.resolution)
     valid, tight = inside & free, inside & near
@@ -354,7 +357,7 @@ def _endpoints(ctx: PlanningContext, qs: np.ndarray, toward: np.ndarray, setting
     for i, q in enumerate(qs):
         escape = None
         if settings.escape and inside[i] and (tight[i] or not valid[i]):
-            attempts = None if i < persistent and np.isfinite(deadline) else ESCAPE_ATTEMPTS
+            attempts = None if i < persistent and not valid[i] and np.isfinite(deadline) else ESCAPE_ATTEMPTS
             escape = certified_escape(ctx, q, toward[i], rng, 0.5 * ctx.resolution, attempts=attempts,
                                       deadline=deadline)
         if not valid[i] and escape is None:
