@@ -121,6 +121,26 @@ def test_missing_file_and_bad_srdf(tmp_path):
         load_urdf(tmp_path / "robot.urdf", srdf)
 
 
+@pytest.mark.parametrize("body, message", [
+    ('<group name="m"><chain base_link="base" tip_link="nope"/></group>', "group 'm' <chain> names unknown link 'nope'"),
+    ('<group name="m"><chain tip_link="slider"/></group>', "group 'm' <chain>: missing attribute 'base_link'"),
+    ('<group name="m"><chain base_link="slider" tip_link="base"/></group>', "is not an ancestor of tip 'base'"),
+    ('<group name="g"><joint name="finger_a"/></group><group_state name="open" group="g">'
+     '<joint name="finger_a" value="9"/></group_state>', "joint 'finger_a' = 9 is outside its limits"),
+    ('<group name="g"><joint name="finger_a"/></group><group_state name="open" group="g">'
+     '<joint name="thumb" value="0"/></group_state>', "group_state 'open': unknown joint 'thumb'; joints: shoulder"),
+    ('<group_state name="open" group="hand"/>', "group_state 'open': unknown group 'hand'; groups: (none)"),
+    ('<group name="g"><joint name="finger_a"/></group><end_effector name="e" parent_link="slider" group="g" '
+     'parent_group="arms"/>', "end_effector 'e': unknown group 'arms'; groups: g"),
+])
+def test_srdf_errors_name_the_srdf_element_and_choices(tmp_path, body, message):
+    write(tmp_path, ARM)
+    srdf = write(tmp_path, f"<robot>{body}</robot>", "bad.srdf")
+    with pytest.raises(ModelError) as error:
+        load_urdf(tmp_path / "robot.urdf", srdf)
+    assert str(error.value).startswith(str(srdf)) and message in str(error.value)
+
+
 def test_mbm_panda_meshes_resolve():
     panda = require_shared(MBM / "panda")
     model = load_urdf(panda / "panda.urdf", panda / "panda.srdf")

@@ -221,10 +221,11 @@ def build_model(
     return dataclasses.replace(model, chains=resolved)
 
 
-def resolve_chain(model: RobotModel, chain: Chain) -> Chain:
+def resolve_chain(model: RobotModel, chain: Chain, where: str | None = None) -> Chain:
     """Check ``chain`` against the model; an empty ``joint_names`` is filled with the actuated
-    joints on the path from ``base_link`` to ``tip_link`` (mimic joints follow their leader)."""
-    where = f"{model.source}: chain '{chain.name}'"
+    joints on the path from ``base_link`` to ``tip_link`` (mimic joints follow their leader).
+    ``where`` names the chain's definition in errors (default: the model's file and the chain)."""
+    where = where or f"{model.source}: chain '{chain.name}'"
     for link in (chain.base_link, chain.tip_link):
         if link not in model.link_names:
             raise ModelError(f"{where} names unknown link '{link}'")

@@ -21,8 +21,7 @@ def _group_joints(model: RobotModel, groups: dict, name: str, source: str, seen:
     for el in groups[name]:
         where = f"{source}: group '{name}' <{el.tag}>"
         if el.tag == "chain":
-            chain = Chain(name, required(el, "base_link", where), required(el, "tip_link", where), ())
-            joints += resolve_chain(model, chain).joint_names
+            joints += _chain(model, name, el, where).joint_names
         elif el.tag == "joint":
             joint = required(el, "name", where)
             if joint in model.joint_names:
@@ -34,11 +33,17 @@ def _group_joints(model: RobotModel, groups: dict, name: str, source: str, seen:
     return list(dict.fromkeys(joints))
 
 
+def _chain(model: RobotModel, name: str, el, where: str) -> Chain:
+    """The chain of group ``name``'s <chain> element ``el``, checked against the model."""
+    return resolve_chain(model, Chain(name, required(el, "base_link", where), required(el, "tip_link", where), ()),
+                         where)
+
+
 def _group_chain(model: RobotModel, groups: dict, name: str, source: str) -> Chain | None:
     """A chain for the group: its <chain> if it has one, else the span of its joints."""
     for el in groups[name]:
         if el.tag == "chain":
-            return resolve_chain(model, Chain(name, el.get("base_link"), el.get("tip_link"), ()))
+            return _chain(model, name, el, f"{source}: group '{name}' <chain>")
     joints = _group_joints(model, groups, name, source)
     if not joints:
         return None
@@ -46,6 +51,25 @@ def _group_chain(model: RobotModel, groups: dict, name: str, source: str) -> Cha
     tip = max(links, key=lambda i: len(model.path_to_root(i)))
     base = model.link_names[int(model.link_parent[min(links, key=lambda i: len(model.path_to_root(i)))])]
     return Chain(name, base, model.link_names[tip], tuple(joints))
+
+
+def _group_name(groups: dict, name: str, where: str) -> str:
+    """``name`` if it is a group of the SRDF; ModelError otherwise."""
+    if name not in groups:
+        raise ModelError(f"{where}: unknown group '{name}'; groups: {', '.join(groups) or '(none)'}")
+    return name
+
+
+def _check_state_value(model: RobotModel, joint: str, value: float, where: str) -> None:
+    """A group state's joint must be a joint of the model; an actuated one's value within its limits."""
+    if joint not in model.joint_names:
+        if joint not in model.link_joint_names:
+            raise ModelError(f"{where}: unknown joint '{joint}'; joints: {', '.join(model.joint_names)}")
+        return  # a mimic or fixed joint, as in a group's <joint>: its value follows
+    i = model.joint_index(joint)
+    if not model.lower[i] - 1e-9 <= value <= model.upper[i] + 1e-9:
+        raise ModelError(f"{where}: joint '{joint}' = {value:g} is outside its limits "
+                         f"[{model.lower[i]:g}, {model.upper[i]:g}]")
 
 
 def apply_srdf(model: RobotModel, path: str | Path) -> RobotModel:
@@ -63,10 +87,11 @@ def apply_srdf(model: RobotModel, path: str | Path) -> RobotModel:
     states: dict[str, dict[str, dict[str, float]]] = {}
     for el in root.findall("group_state"):
         where = f"{source}: group_state '{el.get('name')}'"
-        values = {
-            required(j, "name", where): number(j, "value", where) for j in el.findall("joint")
-        }
-        states.setdefault(required(el, "group", where), {})[required(el, "name", where)] = values
+        values = {required(j, "name", where): number(j, "value", where) for j in el.findall("joint")}
+        for joint, value in values.items():
+            _check_state_value(model, joint, value, where)
+        states.setdefault(_group_name(groups, required(el, "group", where), where), {})[
+            required(el, "name", where)] = values
 
     end_effectors = dict(model.end_effectors)
     for el in root.findall("end_effector"):
@@ -78,7 +103,10 @@ def apply_srdf(model: RobotModel, path: str | Path) -> RobotModel:
         for link in (parent_link, tcp_link, el.get("gcp_link", tcp_link)):
             if link not in model.link_names:
                 raise ModelError(f"{where} names unknown link '{link}'")
-        group = required(el, "group", where)
+        group = _group_name(groups, required(el, "group", where), where)
+        parent_group = el.get("parent_group", "")
+        if parent_group:
+            _group_name(groups, parent_group, where)
         end_effectors[name] = EndEffector(
             name=name,
             base_link=parent_link,
@@ -86,7 +114,7 @@ def apply_srdf(model: RobotModel, path: str | Path) -> RobotModel:
             gcp_link=el.get("gcp_link", tcp_link),
             finger_joints=tuple(_group_joints(model, groups, group, source)),
             preshapes=states.get(group, {}),
-            chain=el.get("parent_group", ""),
+            chain=parent_group,
         )
 
     disabled = set(model.disabled_collision_pairs)
