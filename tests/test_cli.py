@@ -109,6 +109,7 @@ def test_check_bad_scene_file(tmp_path):
      "empty.stl: no triangles"),
     ("robots: [{robot: nao}]\nobstacles: [{name: wall, shape: {type: mesh, file: notes.yaml}}]",
      "notes.yaml: not readable as a triangle"),
+    ("robots: [{robot: panda, goal: {panda_joint9: 0.1}}]", "robots[0].goal"),  # check validates goals as plan does
 ])
 def test_bad_scene_entries_exit_2(tmp_path, entry, message):
     (tmp_path / "empty.stl").write_text("solid empty\nendsolid empty\n")

@@ -116,8 +116,11 @@ def check(
     """
     from prehensile.cli.plan_cmd import scene_path
     from prehensile.scene import check_scene, load_scene
+    from prehensile.scene.files import robot_goals
 
-    loaded = load_scene(scene_path(scene))
+    path = scene_path(scene)
+    loaded = load_scene(path)
+    robot_goals(path, loaded)  # a bad goal is a bad scene, here as for plan
     result = check_scene(loaded, "exact" if exact else "spheres")
     if as_json:
         echo_json({"scene": str(scene), **result.to_dict()})
