@@ -105,6 +105,21 @@ def test_unreachable_target_is_a_status_within_budget():
     assert local.status is IKStatus.NOT_CONVERGED and local.position_error > 1.0
 
 
+def test_a_failed_solve_returns_the_closest_configuration_tried():
+    """Not the last one tried: over restarts, the one nearest its target (in tolerances), with its own errors."""
+    model = robots.load("panda")
+    solver = ChainSolver(model, "arm", settings=JacobianIKSettings(position_only=True))
+    target = np.array([1.5, 0.3, 0.4])  # 0.6 m beyond reach
+    seeded = solver.solve(target)
+    result = solve_ik_complete(solver, target, rng=0, settings=CompleteIKSettings(max_restarts=12))
+    assert result.status is IKStatus.NOT_CONVERGED
+    tcp = forward_kinematics(model, result.q)[model.link_index(model.chain("arm").tip_link)] @ solver.T_tip_tcp
+    assert result.position_error == pytest.approx(np.linalg.norm(tcp[:3, 3] - target), abs=1e-9)
+    assert result.position_error <= seeded.position_error + 1e-12
+    single = [solver.solve(target, q).position_error for q in model.random_configurations(np.random.default_rng(1), 12)]
+    assert result.position_error <= np.median(single)  # the last restart is often farther
+
+
 def test_pose_set_any_one_will_do():
     model = robots.load("panda")
     solver = ChainSolver(model, "arm")

@@ -64,27 +64,31 @@ def solve_ik_complete(solver: ChainSolver, target: np.ndarray, q_seed: np.ndarra
 
     Returns:
         :class:`IKResult`: SUCCESS, TIMEOUT (budget spent) or NOT_CONVERGED (``max_restarts``
-        reached); ``q`` is then the last configuration tried.
+        reached); ``q`` is then the configuration tried that came closest to its target (in
+        units of the tolerances), and the errors are its own.
     """
     start = clock()
     targets = solver.targets(target)
     q0 = solver.seed(q_seed)
     seeds = np.repeat(q0[solver.var_q][None], len(targets), axis=0)
     first_target, restarts, iterations, random_round = 0, 0, 0, False
+    closest = (np.inf, q0, np.inf, np.inf, 0)  # miss, q, position and rotation errors, target index
     while True:
         q, attempt, index, its, pos_err, rot_err = solver.run(q0, seeds, targets, first_target)
         iterations += its
+        if solver.miss(pos_err, rot_err) < closest[0]:  # a converged one that ``is_valid`` rejects counts too
+            closest = (solver.miss(pos_err, rot_err), q, pos_err, rot_err, index)
         if random_round:
             restarts += len(seeds) if attempt < 0 else attempt + 1
         if attempt >= 0 and (is_valid is None or is_valid(q)):
-            return _result(solver, IKStatus.SUCCESS, q, pos_err, rot_err, iterations, start, index, restarts)
+            return _result(solver, IKStatus.SUCCESS, q, pos_err, rot_err, index, iterations, start, restarts)
         if attempt >= 0 and attempt + 1 < len(seeds):  # converged but rejected: go on with the rest
             seeds, first_target = seeds[attempt + 1:], (first_target + attempt + 1) % len(targets)
             continue
         if settings.max_restarts is not None and restarts >= settings.max_restarts:
-            return _result(solver, IKStatus.NOT_CONVERGED, q, pos_err, rot_err, iterations, start, index, restarts)
+            return _result(solver, IKStatus.NOT_CONVERGED, *closest[1:], iterations, start, restarts)
         if clock() - start >= settings.time_budget_s:
-            return _result(solver, IKStatus.TIMEOUT, q, pos_err, rot_err, iterations, start, index, restarts)
+            return _result(solver, IKStatus.TIMEOUT, *closest[1:], iterations, start, restarts)
         if not isinstance(rng, np.random.Generator):  # created only when needed: it costs ~20 us
             rng = np.random.default_rng(rng)
         n = settings.batch if settings.max_restarts is None else min(settings.batch, settings.max_restarts - restarts)
@@ -92,8 +96,8 @@ def solve_ik_complete(solver: ChainSolver, target: np.ndarray, q_seed: np.ndarra
         first_target, random_round = int(rng.integers(len(targets))), True
 
 
-def _result(solver: ChainSolver, status: IKStatus, q: np.ndarray, pos_err: float, rot_err: float, iterations: int,
-            start: float, index: int, restarts: int) -> IKResult:
+def _result(solver: ChainSolver, status: IKStatus, q: np.ndarray, pos_err: float, rot_err: float, index: int,
+            iterations: int, start: float, restarts: int) -> IKResult:
     ok = status is IKStatus.SUCCESS
     return IKResult(status, q, q[None] if ok else np.zeros((0, solver.model.dof)), float(pos_err),
                     0.0 if solver.settings.position_only else float(rot_err), int(iterations),

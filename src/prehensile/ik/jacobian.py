@@ -166,7 +166,8 @@ class ChainSolver:
 
         Returns:
             (q (dof,), converged attempt or -1, target index, iterations, position error m,
-            rotation error rad).
+            rotation error rad): the converged configuration, else the attempt that came
+            closest (:meth:`miss`), with its target index and errors.
         """
         s = self.settings
         q = np.empty(self.model.dof)
@@ -176,6 +177,13 @@ class ChainSolver:
             s.rotation_tolerance if not s.position_only else np.inf, s.iteration_cap, METHODS[s.method],
             s.max_step_position, s.max_step_rotation, s.damping, s.gain, s.stall_cap, first_target)
         return q, attempt, index, iterations, pos_err, rot_err
+
+    def miss(self, position_error: float, rotation_error: float) -> float:
+        """How far a configuration with these errors (m, rad) is from its target, in tolerances
+        (:func:`~prehensile.ik.kernels.miss`)."""
+        s = self.settings
+        return float(kernels.miss(position_error, rotation_error, s.position_tolerance,
+                                  np.inf if s.position_only else s.rotation_tolerance))
 
     def solve(self, target: np.ndarray, q_seed: np.ndarray | None = None) -> IKResult:
         """One local solve from ``q_seed`` (no restarts); a pose set is tried pose by pose.

@@ -250,6 +250,13 @@ def solve(q, targets, target_index, T_world_root, table, var_of_q, var_q, T_tip_
         it += 1
 
 
+@njit(cache=True, inline="always")
+def miss(pos_err, rot_err, tol_pos, tol_rot):
+    """How far a configuration is from its target, in tolerances: position error (m) over
+    ``tol_pos`` plus rotation error (rad) over ``tol_rot`` (infinite for position-only)."""
+    return pos_err / tol_pos + rot_err / tol_rot
+
+
 @njit(cache=True)
 def solve_restarts(q_out, q_seed, seeds, targets, T_world_root, table, var_of_q, var_q, T_tip_tcp, lower,
                    upper, rows, row_weight, tol_pos, tol_rot, max_iterations, method, max_step_pos,
@@ -257,26 +264,32 @@ def solve_restarts(q_out, q_seed, seeds, targets, T_world_root, table, var_of_q,
     """Try the seed rows ``seeds`` (R, n) in order until one converges.
 
     Each attempt starts from ``q_seed`` (dof,) with the chain joints set to a seed row and
-    aims at target ``(first_target + attempt) % k`` of ``targets`` (k, 4, 4). The last
-    attempt's (or the converged) configuration is left in ``q_out`` (dof,).
+    aims at target ``(first_target + attempt) % k`` of ``targets`` (k, 4, 4). The converged
+    configuration, else the attempt closest to its target (:func:`miss`), is left in
+    ``q_out`` (dof,).
 
     Returns:
         (attempt that converged or -1, target index, iterations summed, position error,
-        rotation error).
+        rotation error), the index and errors of the configuration in ``q_out``.
     """
     total = 0
     k = targets.shape[0]
-    pos_err, rot_err, target_index = np.inf, np.inf, first_target % k
+    q = np.empty_like(q_out)
+    best = (np.inf, np.inf, np.inf, first_target % k)  # miss, position error, rotation error, target
     for a in range(seeds.shape[0]):
-        q_out[:] = q_seed
+        q[:] = q_seed
         for c in range(var_q.shape[0]):
-            q_out[var_q[c]] = seeds[a, c]
+            q[var_q[c]] = seeds[a, c]
         target_index = (first_target + a) % k
         outcome, it, pos_err, rot_err = solve(
-            q_out, targets, target_index, T_world_root, table, var_of_q, var_q, T_tip_tcp, lower, upper,
+            q, targets, target_index, T_world_root, table, var_of_q, var_q, T_tip_tcp, lower, upper,
             rows, row_weight, tol_pos, tol_rot, max_iterations, method, max_step_pos, max_step_rot,
             damping, gain, stall_iterations)
         total += it
+        if outcome == CONVERGED or miss(pos_err, rot_err, tol_pos, tol_rot) < best[0]:
+            q_out[:] = q
+            best = (miss(pos_err, rot_err, tol_pos, tol_rot), pos_err, rot_err, target_index)
         if outcome == CONVERGED:
             return a, target_index, total, pos_err, rot_err
-    return -1, target_index, total, pos_err, rot_err
+    return -1, best[3], total, best[1], best[2]
+
