@@ -221,3 +221,22 @@ def test_summaries():
     assert summary["median_ms"] == pytest.approx(1.0) and summary["path_length"] == 1.0
     assert summary["statuses"] == {"success": 1, "invalid_goal": 1}
     assert summary["planned_again"] == 1
+
+
+def test_ompl_takes_a_continuous_joint_starting_beyond_pi():
+    """Ours and OMPL sample a continuous joint in [-pi, pi]; an end beyond is still valid for both."""
+    pytest.importorskip("ompl")
+    from prehensile.benchmarking.ompl_peer import OMPLSettings, ompl_rrt_connect
+    from prehensile.model.builder import JointSpec, LinkSpec, build_model
+    from prehensile.model.geometry import Box, Geometry
+    from prehensile.planning import PlanningContext
+    from prehensile.spatial import make_pose
+
+    bar = Geometry(Box((0.4, 0.05, 0.05)), make_pose(position=[0.2, 0, 0]))
+    links = [LinkSpec("base"), LinkSpec("arm", collisions=[bar])]
+    joints = [JointSpec("turn", "continuous", "base", "arm", np.eye(4), [0, 0, 1.0])]
+    ctx = PlanningContext(build_model("turner", "test", links, joints), [])
+    start, goal = np.array([4.0]), np.array([2.0])
+    result = ompl_rrt_connect(ctx.space, ctx.spheres, start, goal, OMPLSettings(time_budget_s=1.0))
+    assert result.success, result.status
+    assert result.path[0] == pytest.approx(start) and result.path[-1] == pytest.approx(goal)

@@ -236,7 +236,8 @@ def test_flat_mesh_obstacle_is_checked_on_its_triangles():
 def test_a_flat_mesh_floor_is_bounded_by_a_flat_box():
     """The broadphase bounds a mesh obstacle by its oriented box: under a floor of many
     triangles every geometry's lower bound is its enclosing ball's height above the floor."""
-    floor = Obstacle("floor", _box_mesh((4.0, 4.0, 0.0)), make_pose(rpy_to_matrix([0.0, 0.0, 0.4]), position=[0.0, 0.0, -0.2]))
+    floor = Obstacle("floor", _box_mesh((4.0, 4.0, 0.0)),
+                     make_pose(rpy_to_matrix([0.0, 0.0, 0.4]), position=[0.0, 0.0, -0.2]))
     checker = ExactChecker(_arm(), [floor])
     centers = checker._centers(checker._poses(np.array([0.3, -0.5])))
     expected = centers[0, checker._world_pairs[:, 0], 2] + 0.2 - checker._part_radius[checker._world_pairs[:, 0]]

@@ -301,7 +301,8 @@ def test_a_start_the_balls_accept_near_an_obstacle_needs_no_escape():
     """A start within half a resolution of an obstacle whose balls no motion moves away (a
     post spinning about its own axis beside a box) has no escape; it is a node all the same,
     and the plan must not spend its budget searching one."""
-    links = [LinkSpec("base"), LinkSpec("post", collisions=[Geometry(Capsule(0.04, 0.3), make_pose(position=[0, 0, 0.2]))]),
+    links = [LinkSpec("base"),
+             LinkSpec("post", collisions=[Geometry(Capsule(0.04, 0.3), make_pose(position=[0, 0, 0.2]))]),
              LinkSpec("arm", collisions=[Geometry(Capsule(0.03, 0.3), make_pose(ALONG_X, [0.2, 0, 0]))])]
     joints = [JointSpec("spin", "revolute", "base", "post", np.eye(4), [0, 0, 1.0], -3.0, 3.0),
               JointSpec("lift", "revolute", "post", "arm", make_pose(position=[0, 0, 0.45]), [0, 1.0, 0], -1.0, 1.0)]

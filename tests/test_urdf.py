@@ -122,7 +122,8 @@ def test_missing_file_and_bad_srdf(tmp_path):
 
 
 @pytest.mark.parametrize("body, message", [
-    ('<group name="m"><chain base_link="base" tip_link="nope"/></group>', "group 'm' <chain> names unknown link 'nope'"),
+    ('<group name="m"><chain base_link="base" tip_link="nope"/></group>',
+     "group 'm' <chain> names unknown link 'nope'"),
     ('<group name="m"><chain tip_link="slider"/></group>', "group 'm' <chain>: missing attribute 'base_link'"),
     ('<group name="m"><chain base_link="slider" tip_link="base"/></group>', "is not an ancestor of tip 'base'"),
     ('<group name="g"><joint name="finger_a"/></group><group_state name="open" group="g">'

@@ -4,7 +4,7 @@ What OMPL gets, so that the comparison measures the planners and not the problem
 
 - **Space**: a ``RealVectorStateSpace`` of the planned joints with the same limits as our
   :class:`~prehensile.planning.cspace.ConfigurationSpace` (unbounded joints get +-pi there
-  and here). OMPL's own metric (Euclidean in joint space) and its default range
+  and here, widened to a start or goal beyond). OMPL's own metric (Euclidean in joint space) and its default range
   (20 % of the space's extent) are left as OMPL chooses them.
 - **State validity**: our :class:`~prehensile.collision.sphere_checker.SphereChecker`,
   called once per state from C++ through a Python callback (``is_free`` on one configuration).
@@ -108,16 +108,19 @@ def ompl_rrt_connect(space: ConfigurationSpace, checker: SphereChecker, q_start:
     seed_ompl(seed)
     ou.setLogLevel(ou.LOG_ERROR)
     ends = space.full(np.stack([space.active(q_start), space.active(q_goal)]))
-    free = checker.is_free(ends) & space.within_limits(space.active(ends))
+    free = checker.is_free(ends) & space.model.within_limits(ends)
     if not free.all():  # OMPL would spend its whole budget sampling for a valid goal
         status = PlanStatus.INVALID_START if not free[0] else PlanStatus.INVALID_GOAL
         return PlanResult(status, np.zeros((0, space.model.dof)), PlanStats(collision_checks=2))
     n = space.n
     state_space = ob.RealVectorStateSpace(n)
     bounds = ob.RealVectorBounds(n)
+    # an unbounded (continuous) joint is sampled in [-pi, pi], as ours, and may start or end beyond
+    active = space.active(ends)
+    lower, upper = np.minimum(space.lower, active.min(axis=0)), np.maximum(space.upper, active.max(axis=0))
     for k in range(n):
-        bounds.setLow(k, float(space.lower[k]))
-        bounds.setHigh(k, float(space.upper[k]))
+        bounds.setLow(k, float(lower[k]))
+        bounds.setHigh(k, float(upper[k]))
     state_space.setBounds(bounds)
     setup = og.SimpleSetup(state_space)
     q = np.array(space.q_ref, dtype=float)
