@@ -111,6 +111,17 @@ def test_solvers_placed_elsewhere_than_the_robot_are_errors(panda_scene):
         grasp_sampler(ctx, moved, goals, q0)
     with pytest.raises(PrehensileError, match="dual_arm_sampler: the solver of chain 'arm'"):
         dual_arm_sampler(ctx, [solver, moved], [goals, goals], q0)
+    with pytest.raises(PrehensileError, match=r"dual_arm_sampler: expected two arms of different chains"):
+        dual_arm_sampler(ctx, [solver, solver], [goals, goals], q0)
+    with pytest.raises(PrehensileError, match=r"grasp_sampler: q_ref: expected shape \(\.\.\., 8\)"):
+        grasp_sampler(ctx, solver, goals, q0[:7])
+
+
+def test_a_sampler_takes_q_ref_as_a_list(panda_scene):
+    ctx, solver, q0, goals = panda_scene
+    result = ik_rrt(ctx, q0, grasp_sampler(ctx, solver, goals, q0.tolist()), rng=0)
+    assert result.status is PlanStatus.SUCCESS
+    assert_valid_path(ctx, result.path, q0)
 
 
 def test_multi_eef_rrt_names_missing_samplers_and_contexts(panda_scene):

@@ -426,16 +426,23 @@ class PlanningContext:
         q = self.model.check_configuration(q)
         return self.model.within_limits(q) & self.spheres.is_free(q) & self.static_free(q)
 
-    def check_solvers(self, solvers: Sequence, who: str) -> None:
+    def check_solvers(self, solvers: Sequence, who: str, q_ref: np.ndarray | None = None) -> np.ndarray | None:
         """Raise PrehensileError unless every IK solver (``ChainSolver``) places its chain's root
         where this context places the robot (``T_world_base``): its poses would otherwise be
-        reached in the wrong place. ``who`` names the caller in the message."""
+        reached in the wrong place. ``who`` names the caller in the message. Returns ``q_ref``
+        checked as one configuration (dof,) (None if not given)."""
         for solver in solvers:
             if not np.allclose(solver.T_world_root, self.T_world_base, atol=1e-9):
-                raise PrehensileError(f"{who}: the solver of chain '{solver.chain.name}' has T_world_root "
-                                      f"{np.round(solver.T_world_root[:3, 3], 4).tolist()} (translation), not the "
-                                      f"context's T_world_base {np.round(self.T_world_base[:3, 3], 4).tolist()}; "
+                raise PrehensileError(f"{who}: the solver of chain '{solver.chain.name}' has T_world_root (top rows) "
+                                      f"{np.round(solver.T_world_root[:3], 4).tolist()}, not the context's "
+                                      f"T_world_base {np.round(self.T_world_base[:3], 4).tolist()}; "
                                       "build it with ChainSolver(..., T_world_root=ctx.T_world_base)")
+        if q_ref is None:
+            return None
+        q = self.model.check_configuration(q_ref, f"{who}: q_ref")
+        if q.shape != (self.model.dof,):
+            raise PrehensileError(f"{who}: q_ref must be one configuration ({self.model.dof},), got {q.shape}")
+        return q
 
     def why_invalid(self, q: np.ndarray) -> str:
         """Why a planner may reject q (dof,) as a path end (INVALID_START / INVALID_GOAL), in

@@ -171,9 +171,16 @@ def _random_seed(solvers: Sequence[ChainSolver], q_ref: np.ndarray, rng: np.rand
     return q
 
 
+def _check_two(arms: Sequence[ChainSolver], who: str) -> None:
+    """PrehensileError unless ``arms`` are two solvers of different chains."""
+    if len(arms) != 2 or arms[0].chain.name == arms[1].chain.name:
+        raise PrehensileError(f"{who}: expected two arms of different chains, got "
+                              f"{[arm.chain.name for arm in arms]}")
+
+
 def grasp_sampler(ctx: PlanningContext, solver: ChainSolver, target_poses: np.ndarray, q_ref: np.ndarray) -> GoalSampler:
     """IK-RRT goals: one arm, any of the world tool poses (k, 4, 4) (e.g. object pose x grasps)."""
-    ctx.check_solvers([solver], "grasp_sampler")
+    q_ref = ctx.check_solvers([solver], "grasp_sampler", q_ref)
     targets = solver.targets(target_poses)
 
     def sample(rng: np.random.Generator, budget: float):
@@ -188,7 +195,8 @@ def grasp_sampler(ctx: PlanningContext, solver: ChainSolver, target_poses: np.nd
 def dual_arm_sampler(ctx: PlanningContext, arms: Sequence[ChainSolver], target_poses: Sequence[np.ndarray],
                      q_ref: np.ndarray, free: Sequence[str] | str | None = None) -> GoalSampler:
     """Bimanual IK-RRT goals: both hands on their pose sets, free joints (e.g. the hip) sampled."""
-    ctx.check_solvers(arms, "dual_arm_sampler")
+    q_ref = ctx.check_solvers(arms, "dual_arm_sampler", q_ref)
+    _check_two(arms, "dual_arm_sampler")
 
     def sample(rng: np.random.Generator, budget: float):
         result = solve_ik_hybrid(arms, target_poses, free, _random_seed(arms, q_ref, rng), rng,
@@ -208,7 +216,8 @@ def regrasp_sampler(ctx: PlanningContext, arms: Sequence[ChainSolver], grasps: S
     Found once here: the grasp pairs whose hands do not overlap (:func:`separate_grasp_pairs`)
     and, per arm, the reachability samples free of self-collision (:func:`self_free_reach`).
     """
-    ctx.check_solvers(arms, "regrasp_sampler")
+    q_ref = ctx.check_solvers(arms, "regrasp_sampler", q_ref)
+    _check_two(arms, "regrasp_sampler")
     pairs = separate_grasp_pairs(ctx, arms, grasps)
     reach = [self_free_reach(ctx, arm) for arm in arms]
 
