@@ -4,8 +4,8 @@ What OMPL gets, so that the comparison measures the planners and not the problem
 
 - **Space**: a ``RealVectorStateSpace`` of the planned joints with the same limits as our
   :class:`~prehensile.planning.cspace.ConfigurationSpace` (unbounded joints get +-pi there
-  and here, widened to a start or goal beyond). OMPL's own metric (Euclidean in joint space) and its default range
-  (20 % of the space's extent) are left as OMPL chooses them.
+  and here, widened to a start or goal beyond). OMPL's own metric (Euclidean in joint space)
+  and its default range (20 % of the space's extent) are left as OMPL chooses them.
 - **State validity**: our :class:`~prehensile.collision.sphere_checker.SphereChecker`,
   called once per state from C++ through a Python callback (``is_free`` on one configuration).
   The callback costs some microseconds per state; :func:`validity_call_seconds` measures it so

@@ -16,10 +16,10 @@ import coal
 import numpy as np
 
 from prehensile.collision.acm import allowed_collision_matrix
+from prehensile.collision.sphere_fit import box_cover, geometry_triangles
 from prehensile.collision.world import Obstacle, check_obstacles
 from prehensile.errors import PrehensileError
 from prehensile.kinematics.forward import forward_kinematics
-from prehensile.collision.sphere_fit import box_cover, geometry_triangles
 from prehensile.model.geometry import Box, Capsule, Cylinder, Geometry, Mesh, Shape, Sphere
 from prehensile.model.robot_model import RobotModel
 from prehensile.spatial.transforms import check_one_pose

@@ -292,4 +292,3 @@ def solve_restarts(q_out, q_seed, seeds, targets, T_world_root, table, var_of_q,
         if outcome == CONVERGED:
             return a, target_index, total, pos_err, rot_err
     return -1, best[3], total, best[1], best[2]
-
