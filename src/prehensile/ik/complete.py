@@ -76,8 +76,9 @@ def solve_ik_complete(solver: ChainSolver, target: np.ndarray, q_seed: np.ndarra
     while True:
         q, attempt, index, its, pos_err, rot_err = solver.run(q0, seeds, targets, first_target)
         iterations += its
-        if solver.miss(pos_err, rot_err) < closest[0]:  # a converged one that ``is_valid`` rejects counts too
-            closest = (solver.miss(pos_err, rot_err), q, pos_err, rot_err, index)
+        miss = solver.miss(pos_err, rot_err)
+        if miss < closest[0]:  # a converged one that ``is_valid`` rejects counts too
+            closest = (miss, q, pos_err, rot_err, index)
         if random_round:
             restarts += len(seeds) if attempt < 0 else attempt + 1
         if attempt >= 0 and (is_valid is None or is_valid(q)):

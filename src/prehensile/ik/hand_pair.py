@@ -23,6 +23,13 @@ from prehensile.kinematics.kernels import FAST
 UNBOUNDED = (np.full(6, -np.inf), np.full(6, np.inf))  # object bounds without a region
 
 
+def check_arm_pair(arms: Sequence[ChainSolver], who: str) -> None:
+    """PrehensileError (naming ``who``) unless ``arms`` are two solvers of different chains."""
+    if len(arms) != 2 or arms[0].chain.name == arms[1].chain.name:
+        raise PrehensileError(f"{who}: expected two arms of different chains, got "
+                              f"{[arm.chain.name for arm in arms]}")
+
+
 class HandPair:
     """Two arms of one model solved together, with further joints (e.g. the hip) and,
     optionally, the object pose as unknowns.
@@ -43,8 +50,7 @@ class HandPair:
 
     def __init__(self, arms: Sequence[ChainSolver], free: Sequence[str] | str | None = None,
                  settings: JacobianIKSettings | None = None) -> None:
-        if len(arms) != 2:
-            raise PrehensileError(f"HandPair: expected two arm solvers, got {len(arms)}")
+        check_arm_pair(arms, "HandPair")
         a, b = arms
         if a.model is not b.model or not np.array_equal(a.T_world_root, b.T_world_root):
             raise PrehensileError("HandPair: both arms must belong to one model with one root pose")

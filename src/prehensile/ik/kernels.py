@@ -286,9 +286,10 @@ def solve_restarts(q_out, q_seed, seeds, targets, T_world_root, table, var_of_q,
             rows, row_weight, tol_pos, tol_rot, max_iterations, method, max_step_pos, max_step_rot,
             damping, gain, stall_iterations)
         total += it
-        if outcome == CONVERGED or miss(pos_err, rot_err, tol_pos, tol_rot) < best[0]:
+        far = miss(pos_err, rot_err, tol_pos, tol_rot)
+        if outcome == CONVERGED or far < best[0]:
             q_out[:] = q
-            best = (miss(pos_err, rot_err, tol_pos, tol_rot), pos_err, rot_err, target_index)
+            best = (far, pos_err, rot_err, target_index)
         if outcome == CONVERGED:
             return a, target_index, total, pos_err, rot_err
     return -1, best[3], total, best[1], best[2]

@@ -28,6 +28,7 @@ from prehensile.clock import clock
 from prehensile.collision.sphere_checker import SphereChecker
 from prehensile.errors import PrehensileError
 from prehensile.ik.complete import CompleteIKSettings, solve_ik_complete
+from prehensile.ik.hand_pair import check_arm_pair
 from prehensile.ik.hybrid import HybridIKSettings, ObjectRegion, solve_ik_hybrid, solve_regrasp_ik
 from prehensile.ik.jacobian import ChainSolver
 from prehensile.ik.reach import ReachSamples, reach_samples
@@ -171,13 +172,6 @@ def _random_seed(solvers: Sequence[ChainSolver], q_ref: np.ndarray, rng: np.rand
     return q
 
 
-def _check_two(arms: Sequence[ChainSolver], who: str) -> None:
-    """PrehensileError unless ``arms`` are two solvers of different chains."""
-    if len(arms) != 2 or arms[0].chain.name == arms[1].chain.name:
-        raise PrehensileError(f"{who}: expected two arms of different chains, got "
-                              f"{[arm.chain.name for arm in arms]}")
-
-
 def grasp_sampler(ctx: PlanningContext, solver: ChainSolver, target_poses: np.ndarray, q_ref: np.ndarray) -> GoalSampler:
     """IK-RRT goals: one arm, any of the world tool poses (k, 4, 4) (e.g. object pose x grasps)."""
     q_ref = ctx.check_solvers([solver], "grasp_sampler", q_ref)
@@ -196,7 +190,7 @@ def dual_arm_sampler(ctx: PlanningContext, arms: Sequence[ChainSolver], target_p
                      q_ref: np.ndarray, free: Sequence[str] | str | None = None) -> GoalSampler:
     """Bimanual IK-RRT goals: both hands on their pose sets, free joints (e.g. the hip) sampled."""
     q_ref = ctx.check_solvers(arms, "dual_arm_sampler", q_ref)
-    _check_two(arms, "dual_arm_sampler")
+    check_arm_pair(arms, "dual_arm_sampler")
 
     def sample(rng: np.random.Generator, budget: float):
         result = solve_ik_hybrid(arms, target_poses, free, _random_seed(arms, q_ref, rng), rng,
@@ -217,7 +211,7 @@ def regrasp_sampler(ctx: PlanningContext, arms: Sequence[ChainSolver], grasps: S
     and, per arm, the reachability samples free of self-collision (:func:`self_free_reach`).
     """
     q_ref = ctx.check_solvers(arms, "regrasp_sampler", q_ref)
-    _check_two(arms, "regrasp_sampler")
+    check_arm_pair(arms, "regrasp_sampler")
     pairs = separate_grasp_pairs(ctx, arms, grasps)
     reach = [self_free_reach(ctx, arm) for arm in arms]
 
