@@ -224,7 +224,7 @@ def test_summaries():
 
 
 def test_ompl_takes_a_continuous_joint_starting_beyond_pi():
-    """Ours and OMPL sample a continuous joint in [-pi, pi]; an end beyond is still valid for both."""
+    """Ours and OMPL sample a continuous joint in one turn around the start; an end beyond pi is valid for both."""
     pytest.importorskip("ompl")
     from prehensile.benchmarking.ompl_peer import OMPLSettings, ompl_rrt_connect
     from prehensile.model.builder import JointSpec, LinkSpec, build_model

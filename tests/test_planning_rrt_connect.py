@@ -222,6 +222,28 @@ def test_goal_set_reports_the_goal_reached(arm):
     _check_result(ctx, result, start, goals[result.goal_index])
 
 
+def _turner():
+    """A 0.4 m bar on one continuous joint about z, 0.1 m above a base disc."""
+    bar = Geometry(Box((0.4, 0.05, 0.05)), make_pose(position=[0.25, 0, 0]))
+    links = [LinkSpec("base"), LinkSpec("bar", collisions=[bar])]
+    joints = [JointSpec("turn", "continuous", "base", "bar", make_pose(position=[0, 0, 0.1]), [0, 0, 1.0])]
+    return build_model("turner", "test", links, joints)
+
+
+@pytest.mark.parametrize("blocked", [False, True])
+def test_a_continuous_joint_turns_the_shorter_way_unless_it_is_blocked(blocked):
+    """2.8 -> -2.8 rad is 0.68 rad through +-pi; a post there forces the 5.6 rad the other way."""
+    post = _box("post", [-0.3, 0.0, 0.1], [0.05, 0.05, 0.3])
+    ctx = PlanningContext(_turner(), [post] if blocked else [])
+    start, goal = np.array([2.8]), np.array([-2.8])
+    result = rrt_connect(ctx, start, goal, FAST, 0)
+    reached = goal if blocked else goal + 2 * np.pi  # the same angle, a turn apart
+    _check_result(ctx, result, start, reached)
+    assert result.goal_index == 0
+    turned = result.path[:, 0]
+    assert (turned.min(), turned.max()) == ((-2.8, 2.8) if blocked else (2.8, pytest.approx(reached[0])))
+
+
 def test_search_resumes_its_trees_and_takes_goals_added_later(arm):
     model, spheres = arm
     # the wall of the infeasible problem above: from +x the arm cannot reach -x

@@ -329,7 +329,9 @@ def run_mbm(problems_path: str | Path, model: RobotModel, spheres: tuple[SphereM
 
         prepared = PreparedProblem(model, spheres, problems[0], settings)
         report["ompl"]["validity_call_us"] = 1e6 * validity_call_seconds(prepared.ctx.spheres, prepared.q_start)
-        report["ompl"]["segment_fraction"] = segment_fraction(prepared.ctx.space, settings.resolution)
+        space = prepared.ctx.space  # the problem's start sets the sampled turn of a continuous joint
+        bounds = space.sampling_bounds(space.active(prepared.q_start))
+        report["ompl"]["segment_fraction"] = segment_fraction(space, settings.resolution, *bounds)
     return report
 
 

@@ -82,11 +82,11 @@ def seed_ompl(seed: int) -> int:
     return _SEED[0]
 
 
-def segment_fraction(space: ConfigurationSpace, resolution: float) -> float:
-    """OMPL's longest valid segment as a fraction of the maximum extent for ``resolution`` m."""
+def segment_fraction(space: ConfigurationSpace, resolution: float, lower: np.ndarray, upper: np.ndarray) -> float:
+    """OMPL's longest valid segment for ``resolution`` m as a fraction of the extent of the
+    bounds ``lower``, ``upper`` (n,) of its state space."""
     step = resolution / float(np.linalg.norm(space.weights))
-    extent = float(np.linalg.norm(space.upper - space.lower))
-    return step / extent
+    return step / float(np.linalg.norm(upper - lower))
 
 
 def ompl_rrt_connect(space: ConfigurationSpace, checker: SphereChecker, q_start: np.ndarray, q_goal: np.ndarray,
@@ -115,9 +115,12 @@ def ompl_rrt_connect(space: ConfigurationSpace, checker: SphereChecker, q_start:
     n = space.n
     state_space = ob.RealVectorStateSpace(n)
     bounds = ob.RealVectorBounds(n)
-    # an unbounded (continuous) joint is sampled in [-pi, pi], as ours, and may start or end beyond
+    # an unbounded (continuous) joint is sampled in one turn around the start, and its goal is
+    # taken within pi of the start, as ours does
     active = space.active(ends)
-    lower, upper = np.minimum(space.lower, active.min(axis=0)), np.maximum(space.upper, active.max(axis=0))
+    active[1] = space.nearest_turn(active[1], active[0])
+    lower, upper = space.sampling_bounds(active[0])
+    lower, upper = np.minimum(lower, active[1]), np.maximum(upper, active[1])
     for k in range(n):
         bounds.setLow(k, float(lower[k]))
         bounds.setHigh(k, float(upper[k]))
@@ -135,10 +138,10 @@ def ompl_rrt_connect(space: ConfigurationSpace, checker: SphereChecker, q_start:
 
     setup.setStateValidityChecker(is_valid)
     info = setup.getSpaceInformation()
-    info.setStateValidityCheckingResolution(segment_fraction(space, settings.resolution))
+    info.setStateValidityCheckingResolution(segment_fraction(space, settings.resolution, lower, upper))
     start, goal = state_space.allocState(), state_space.allocState()
     for k in range(n):
-        start[k], goal[k] = float(ends[0, indices[k]]), float(ends[1, indices[k]])
+        start[k], goal[k] = float(active[0, k]), float(active[1, k])
     setup.setStartAndGoalStates(start, goal)
     setup.setPlanner(og.RRTConnect(info))
     setup.setup()

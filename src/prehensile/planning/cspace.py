@@ -63,7 +63,10 @@ class ConfigurationSpace:
     """The planned joints (a subset of the model's variables), their limits and metric.
 
     Planners work on "active" vectors (n,) of the planned joints; :meth:`full` expands them
-    into model configurations (dof,) with the other joints at ``q_ref``.
+    into model configurations (dof,) with the other joints at ``q_ref``. A continuous joint
+    (no limits) is planned on the real line, unwrapped: paths run the shorter way round when
+    their goals come from :meth:`nearest_turn`, and samples are drawn from one turn around
+    the start (:meth:`sampling_bounds`).
 
     Args:
         model: the robot.
@@ -92,8 +95,10 @@ class ConfigurationSpace:
         self.q_ref = model.neutral_configuration() if q_ref is None else model.check_configuration(q_ref, "q_ref").copy()
         if self.q_ref.shape != (model.dof,):
             raise PrehensileError(f"q_ref: expected one configuration ({model.dof},), got {self.q_ref.shape}")
-        self.lower = np.where(np.isfinite(model.lower[self.indices]), model.lower[self.indices], -np.pi)
-        self.upper = np.where(np.isfinite(model.upper[self.indices]), model.upper[self.indices], np.pi)
+        self.lower, self.upper = model.lower[self.indices], model.upper[self.indices]
+        """(n,) limits of the planned joints (rad or m; +-inf for continuous joints)."""
+        self.continuous = model.continuous[self.indices]
+        """(n,) bool: the planned joints without limits."""
         if weights is None:
             if centers is None or radii is None:
                 raise PrehensileError("ConfigurationSpace: give either weights or the link balls (centers, radii)")
@@ -127,9 +132,35 @@ class ConfigurationSpace:
         """Workspace-bounded distance (m) between active vectors a, b (*batch, n)."""
         return np.sum(self.weights * np.abs(np.asarray(b, float) - np.asarray(a, float)), axis=-1)
 
-    def within_limits(self, qa: np.ndarray, tol: float = 1e-9) -> np.ndarray:
-        """(*batch,) bool: active vectors qa (*batch, n) within the limits."""
-        return np.all((qa >= self.lower - tol) & (qa <= self.upper + tol), axis=-1)
+    def sampling_bounds(self, center: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(lower, upper) (n,) of uniform samples: the limits, and for a continuous joint the
+        turn ``center +- pi`` around the active vector ``center`` (n,)."""
+        center = np.asarray(center, dtype=float)
+        return (np.where(self.continuous, center - np.pi, self.lower),
+                np.where(self.continuous, center + np.pi, self.upper))
+
+    def goal_turns(self, qa: np.ndarray, ref: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Goals qa (k, n) as reached from ``ref`` (n,) either way round a continuous joint.
+
+        Per goal: :meth:`nearest_turn` (the shorter way for every continuous joint), then for
+        each continuous joint the same goal with that joint one turn the other way (the longer
+        way, when the shorter one is blocked). Returns (goals (m, n), row of qa of each (m,)).
+        """
+        near = self.nearest_turn(qa, ref)
+        out, rows = [near], [np.arange(len(near))]
+        for j in np.flatnonzero(self.continuous):
+            other = near.copy()
+            other[:, j] -= 2 * np.pi * np.where(near[:, j] >= ref[j], 1.0, -1.0)
+            out.append(other)
+            rows.append(rows[0])
+        return np.concatenate(out), np.concatenate(rows)
+
+    def nearest_turn(self, qa: np.ndarray, ref: np.ndarray) -> np.ndarray:
+        """Active vectors qa (*batch, n) with each continuous joint moved by whole turns (2 pi)
+        to within pi of ``ref`` (n,): the same poses, reached from ref the shorter way round."""
+        qa, ref = np.asarray(qa, dtype=float), np.asarray(ref, dtype=float)
+        turns = np.round((qa - ref) / (2 * np.pi))
+        return np.where(self.continuous, qa - 2 * np.pi * turns, qa)
 
     def interpolate(self, a: np.ndarray, b: np.ndarray, resolution: float) -> np.ndarray:
         """Configurations on the segment a -> b (n,), both ends included, spaced at most

@@ -268,12 +268,12 @@ def _grow(ctx: PlanningContext, q_start: np.ndarray, goals, s: JPlusRRTSettings,
     if escape is not None:
         tree.add(escape, 0, goals.tools(escape))
         tree.first = 1
-    iterations = 0
+    iterations, bounds = 0, ctx.space.sampling_bounds(q_start[ctx.space.indices])
     try:
         while clock() - start_time < s.time_budget_s:
             iterations += 1
             if rng.random() >= s.goal_probability:
-                _extend_randomly(ctx, tree, goals, s.step, rng)
+                _extend_randomly(ctx, tree, goals, s.step, bounds, rng)
                 continue
             g = int(rng.integers(goals.count))
             d = goals.distance(tree.tools[:tree.count], g)
@@ -291,10 +291,12 @@ def _grow(ctx: PlanningContext, q_start: np.ndarray, goals, s: JPlusRRTSettings,
     return _result(PlanStatus.TIMEOUT, ctx, iterations, tree.count, counted, start_time)
 
 
-def _extend_randomly(ctx: PlanningContext, tree: _Tree, goals, step: float, rng: np.random.Generator) -> None:
-    """One RRT step from the node nearest to a uniform sample (workspace-weighted metric)."""
+def _extend_randomly(ctx: PlanningContext, tree: _Tree, goals, step: float, bounds: tuple[np.ndarray, np.ndarray],
+                     rng: np.random.Generator) -> None:
+    """One RRT step from the node nearest to a uniform sample within ``bounds`` (lower, upper) (n,)
+    (workspace-weighted metric)."""
     idx, w = ctx.space.indices, ctx.space.weights
-    sample = rng.uniform(ctx.space.lower, ctx.space.upper)
+    sample = rng.uniform(*bounds)
     near = tree.first + int(np.argmin(np.abs(tree.q[tree.first:tree.count][:, idx] - sample) @ w))
     delta = sample - tree.q[near, idx]
     length = float(w @ np.abs(delta))

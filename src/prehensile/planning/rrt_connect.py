@@ -393,19 +393,22 @@ class RRTConnectSearch:
         self.start = model.check_configuration(q_start, "q_start")
         if self.start.shape != (model.dof,):
             raise PrehensileError(f"rrt_connect: q_start must be ({model.dof},), got {self.start.shape}")
-        self.goals = np.zeros((0, model.dof))
+        self.goals = np.zeros((0, model.dof))  # the goals as planned (ConfigurationSpace.goal_turns)
+        self.goal_of = np.zeros(0, dtype=np.int64)  # row of the goals as given, per row of self.goals
+        self.given = 0  # goals given
         self.context, self.res, self.refined = ctx, ctx.resolution, set()
         self.state = rng_state(self.rng)
         self.trees: _Trees | None = None
         self.start_status: PlanStatus | None = None
-        self.goal_row: dict[int, int] = {}  # goal tree root node -> row of self.goals
+        self.goal_row: dict[int, int] = {}  # goal tree root node -> row of the goals as given
         self.escapes = 0  # certified escape nodes in the trees
         self._setup_s = clock() - started  # counted into the next solve's search time
 
     def add_goals(self, q_goals: np.ndarray, deadline: float = np.inf) -> None:
         """Add a goal (dof,) or goals (k, dof); the joints not planned must equal the start's. A
-        goal that needs a certified escape gets none found after ``deadline`` (s,
-        :func:`~prehensile.clock.clock`)."""
+        continuous joint's goal value counts modulo 2 pi: the goal is reached either way round
+        (:meth:`ConfigurationSpace.goal_turns`). A goal that needs a certified escape gets none
+        found after ``deadline`` (s, :func:`~prehensile.clock.clock`)."""
         started = clock()
         model, space = self.ctx.model, self.ctx.space
         goals = model.check_configuration(q_goals, "q_goal")
@@ -418,8 +421,13 @@ class RRTConnectSearch:
             raise PrehensileError("rrt_connect: goal and start differ in joints that are not planned "
                                   f"({', '.join(model.joint_names[i] for i in differ)}; planned: "
                                   f"{', '.join(space.joint_names)})")
+        turns, rows = space.goal_turns(goals[:, space.indices], self.start[space.indices])
+        planned = goals[rows]
+        planned[:, space.indices] = turns
         first = len(self.goals)
-        self.goals = np.concatenate((self.goals, goals))
+        self.goals = np.concatenate((self.goals, planned))
+        self.goal_of = np.concatenate((self.goal_of, self.given + rows))
+        self.given += len(goals)
         if self.trees is not None:
             self._append_goals(first, deadline)
         self._setup_s += clock() - started
@@ -432,9 +440,10 @@ class RRTConnectSearch:
         self._add_goal_nodes(first, _endpoints(self.context, goals, toward, self.settings, self.rng, deadline))
 
     def _add_goal_nodes(self, first: int, goal_nodes: list) -> None:
+        """Roots (with escape nodes) of goals[first:] in the goal tree; None: an unusable goal."""
         for row, nodes in enumerate(goal_nodes, first):
             if nodes is not None:
-                self.goal_row[self.trees.append(1, nodes)] = row
+                self.goal_row[self.trees.append(1, nodes)] = int(self.goal_of[row])
                 self.escapes += len(nodes) - 1
 
     def _build_trees(self, deadline: float) -> None:
@@ -471,8 +480,8 @@ class RRTConnectSearch:
         """Resume the search until ``deadline`` (s, :func:`~prehensile.clock.clock`); (path or None,
         goal root)."""
         space, trees, settings = self.context.space, self.trees, self.settings
-        work = (space.lower, space.upper, self.start.copy(), self.context.spheres.data, self.context.scratch,
-                self.context.motion_arrays(self.res))
+        work = (*space.sampling_bounds(self.start[space.indices]), self.start.copy(), self.context.spheres.data,
+                self.context.scratch, self.context.motion_arrays(self.res))
         # a quarter of the time left at a guessed 20 us per iteration (most take 5 to 50), at most 128
         chunk = int(min(max(0.25 * (deadline - clock()) / 20e-6, 1), 128))
         while True:
@@ -571,7 +580,8 @@ def rrt_connect(ctx: PlanningContext, q_start: np.ndarray, q_goal: np.ndarray,
 
     Returns:
         :class:`PlanResult`: on SUCCESS ``path`` (N, dof) runs from exactly q_start to exactly
-        the reached goal (``goal_index`` its row), ``info`` has ``length`` (m, weighted),
+        the reached goal (``goal_index`` its row; a continuous joint ends at the goal's angle
+        plus the whole turns that put it within pi of the start), ``info`` has ``length`` (m, weighted),
         ``attempts``, ``escapes`` (certified escape edges among the roots), ``refined``
         (links planned on covering balls, see ``settings.certify_retries``) and ``certify``
         (:class:`CertifyReport`, if certified). INVALID_START /
