@@ -132,6 +132,16 @@ def test_pose_set_any_one_will_do():
     assert_reaches(solver, result, targets[1])
 
 
+def test_pose_set_is_solved_first_for_the_pose_nearest_the_seed():
+    """Of two reachable poses, the seed sits at the second: that one is the answer, unmoved."""
+    model = robots.load("panda")
+    solver = ChainSolver(model, "arm")
+    seeds, targets = chain_targets(model, "arm", 2, seed=5)
+    result = solve_ik_complete(solver, targets, seeds[1], rng=0)
+    assert result.success and result.target_index == 1 and result.iterations <= 1
+    assert np.abs(result.q - seeds[1]).max() < 1e-9
+
+
 def test_same_seed_same_result_and_position_only():
     model = robots.load("panda")
     solver = ChainSolver(model, "arm", settings=JacobianIKSettings(position_only=True, position_tolerance=1e-5))

@@ -63,9 +63,19 @@ def test_ik_rrt_reaches_a_grasp(panda_scene):
     assert result.success and result.stats.ik_solutions >= 1
     assert_valid_path(ctx, result.path, q0)
     grasp = result.info["goal"]["grasp"]
+    assert result.goal_index == grasp  # the pose reached, as in jplus_rrt
     assert np.linalg.norm(solver.tool_pose(result.path[-1])[:3, 3] - goals[grasp, :3, 3]) <= 1e-4
     again = ik_rrt(ctx, q0, grasp_sampler(ctx, solver, goals, q0), rng=0)  # None is seed 0
     assert np.array_equal(again.path, result.path)
+
+
+def test_ik_rrt_to_a_pose_the_start_reaches_stays_there(panda_scene):
+    """The first IK seed is q_ref: a start already at one of the poses is the goal configuration."""
+    ctx, solver, q0, goals = panda_scene
+    poses = np.concatenate((goals[:1], solver.tool_pose(q0)[None]))
+    result = ik_rrt(ctx, q0, grasp_sampler(ctx, solver, poses, q0), rng=3)
+    assert result.success and result.goal_index == 1
+    assert np.abs(result.path - q0).max() < 1e-6
 
 
 def test_ik_planners_start_where_only_the_balls_collide(panda_scene):

@@ -13,7 +13,8 @@ Choices (the thesis leaves them open):
 - Seeds are drawn and solved in batches inside one compiled call (``batch`` seeds per call;
   the clock is read between calls).
 - A pose set (e.g. the grasps of an object: any one will do) is tried pose by pose from the
-  caller's seed, then a random pose per random seed.
+  caller's seed, beginning with the pose nearest to the seed's tool (a seed already at a pose
+  is its own solution), then a random pose per random seed.
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ from prehensile.clock import clock
 from prehensile.errors import PrehensileError
 from prehensile.ik.jacobian import ChainSolver
 from prehensile.ik.result import IKResult, IKStatus
+from prehensile.spatial.transforms import rotation_error
 
 
 @dataclass(frozen=True)
@@ -71,7 +73,7 @@ def solve_ik_complete(solver: ChainSolver, target: np.ndarray, q_seed: np.ndarra
     targets = solver.targets(target)
     q0 = solver.seed(q_seed)
     seeds = np.repeat(q0[solver.var_q][None], len(targets), axis=0)
-    first_target, restarts, iterations, random_round = 0, 0, 0, False
+    first_target, restarts, iterations, random_round = _nearest_target(solver, q0, targets), 0, 0, False
     closest = (np.inf, q0, np.inf, np.inf, 0)  # miss, q, position and rotation errors, target index
     while True:
         q, attempt, index, its, pos_err, rot_err = solver.run(q0, seeds, targets, first_target)
@@ -95,6 +97,17 @@ def solve_ik_complete(solver: ChainSolver, target: np.ndarray, q_seed: np.ndarra
         n = settings.batch if settings.max_restarts is None else min(settings.batch, settings.max_restarts - restarts)
         seeds = rng.uniform(solver.lower, solver.upper, size=(n, solver.n))
         first_target, random_round = int(rng.integers(len(targets))), True
+
+
+def _nearest_target(solver: ChainSolver, q: np.ndarray, targets: np.ndarray) -> int:
+    """Index of the pose of ``targets`` (k, 4, 4) nearest to the tool at q (dof,), in
+    tolerances (:meth:`~prehensile.ik.jacobian.ChainSolver.miss`)."""
+    if len(targets) == 1:  # spares the forward kinematics of single-pose solves
+        return 0
+    tool = solver.tool_pose(q)
+    position = np.linalg.norm(targets[:, :3, 3] - tool[:3, 3], axis=-1)
+    rotation = np.linalg.norm(rotation_error(targets[:, :3, :3], tool[:3, :3]), axis=-1)
+    return int(np.argmin([solver.miss(p, r) for p, r in zip(position, rotation)]))
 
 
 def _result(solver: ChainSolver, status: IKStatus, q: np.ndarray, pos_err: float, rot_err: float, index: int,

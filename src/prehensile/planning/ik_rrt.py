@@ -40,7 +40,8 @@ from prehensile.planning.seeding import planner_rng
 from prehensile.spatial.transforms import invert
 
 # a goal sampler draws one goal configuration (dof,) or None, and what it reached (grasp
-# indices, object pose, ...), within a time budget (s)
+# indices, object pose, ...), within a time budget (s); "grasp" is the index of a single
+# target pose reached (the planners' ``goal_index``)
 GoalSampler = Callable[[np.random.Generator, float], tuple[np.ndarray | None, dict]]
 
 
@@ -100,8 +101,9 @@ class _Search:
         if result.status in (PlanStatus.TIMEOUT, PlanStatus.CERTIFICATION_FAILED, PlanStatus.INVALID_GOAL):
             return None
         goal = self.infos[result.goal_index] if result.success else {}
-        return PlanResult(result.status, result.path, self.stats(), result.goal_index,
-                          info={"goal": goal, "goal_configurations": len(self.infos)})
+        return PlanResult(result.status, result.path, self.stats(), goal.get("grasp", -1),
+                          info={"goal": goal, "goal_configuration": result.goal_index,
+                                "goal_configurations": len(self.infos)})
 
     def stats(self, total_s: float | None = None) -> PlanStats:
         return PlanStats(self.iterations, self.nodes, self.checks, len(self.infos),
@@ -113,9 +115,12 @@ def ik_rrt(ctx: PlanningContext, q_start: np.ndarray, sampler: GoalSampler, sett
     """Plan from ``q_start`` to any goal configuration the IK ``sampler`` finds.
 
     Returns:
-        :class:`PlanResult`; ``goal_index`` indexes the goal configurations sampled, ``info``
-        holds what the winning sample reached (``info["goal"]``, e.g. the grasp). TIMEOUT or
-        NO_GOAL_CONFIGURATION (IK found nothing) when the budget runs out.
+        :class:`PlanResult`; ``goal_index`` is the target pose reached (as in
+        :func:`~prehensile.planning.jplus_rrt.jplus_rrt`; -1 for samplers of pose pairs), ``info``
+        holds what the winning sample reached (``info["goal"]``, e.g. the grasp pair), which
+        of the goal configurations sampled it was (``goal_configuration``) and how many were
+        (``goal_configurations``). TIMEOUT or NO_GOAL_CONFIGURATION (IK found nothing) when
+        the budget runs out.
     """
     return multi_eef_rrt(ctx, q_start, {"": sampler}, settings, rng)
 
@@ -177,9 +182,13 @@ def grasp_sampler(ctx: PlanningContext, solver: ChainSolver, target_poses: np.nd
     q_ref = ctx.check_solvers([solver], "grasp_sampler", q_ref)
     targets = solver.targets(target_poses)
 
+    calls = [0]
+
     def sample(rng: np.random.Generator, budget: float):
-        result = solve_ik_complete(solver, targets, _random_seed([solver], q_ref, rng), rng,
-                                   CompleteIKSettings(time_budget_s=max(budget, 1e-6)),
+        # the first seed is q_ref itself: the solution nearest to it (q_ref when it reaches a pose)
+        seed = q_ref if calls[0] == 0 else _random_seed([solver], q_ref, rng)
+        calls[0] += 1
+        result = solve_ik_complete(solver, targets, seed, rng, CompleteIKSettings(time_budget_s=max(budget, 1e-6)),
                                    is_valid=lambda q: bool(ctx.is_valid(q)))
         return (result.q, {"grasp": result.target_index}) if result.success else (None, {})
 

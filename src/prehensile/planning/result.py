@@ -58,7 +58,9 @@ class PlanResult:
         path: (N, dof) full-model waypoints (rad or m) from start to goal, straight segments
             between them; (0, dof) unless ``status`` is SUCCESS.
         stats: :class:`PlanStats`.
-        goal_index: which goal of a goal set was reached (grasp / pose index), -1 if none.
+        goal_index: which goal of a goal set was reached: the row of the goal configurations
+            (:func:`~prehensile.planning.rrt_connect.rrt_connect`) or the target pose (J+-RRT,
+            IK-RRT); -1 if none, or the goal is a pair of poses (see ``info``).
         end_effector: the hand that grasps (Multi-EEF planners), "" otherwise.
         info: planner-specific extras (e.g. the grasp pair of a bimanual plan).
     """
