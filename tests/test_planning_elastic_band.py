@@ -104,11 +104,13 @@ def test_band_tightens_a_detour_far_from_obstacles(panda):
 
 
 class _Rejecting:
-    """A context whose motion check refuses everything."""
+    """A context whose motion check refuses everything (the exact certification of the input
+    path still passes)."""
 
     def __init__(self, ctx):
         self.model, self.space, self.exact, self.is_valid = ctx.model, ctx.space, ctx.exact, ctx.is_valid
         self.spheres, self.sphere_model = ctx.spheres, ctx.sphere_model
+        self.certifier, self.certify_resolution = ctx.certifier, ctx.certify_resolution
 
     def check_motions(self, qa, qb) -> np.ndarray:
         return np.zeros(len(qa), dtype=bool)
@@ -124,11 +126,14 @@ def test_rejected_updates_leave_the_path_unchanged(panda):
 
 def test_subdividing_keeps_every_waypoint_exactly(panda):
     ctx = _context(panda, [])
-    rng = np.random.default_rng(0)
-    for _ in range(20):  # a + 1.0 * (b - a) differs from b in the last bit for some of these
+    rng, paths = np.random.default_rng(0), 0
+    while paths < 20:  # a + 1.0 * (b - a) differs from b in the last bit for some of these
         goal = Q_START.copy()
         goal[:7] = rng.uniform(ctx.space.lower, ctx.space.upper)
         path = np.stack([Q_START, 0.5 * (Q_START + goal), goal])
+        if not _valid(ctx, path):
+            continue
+        paths += 1
         band = elastic_band(ctx, path, ElasticBandSettings(max_iterations=0))
         assert len(band) > 3 and all((band == q).all(axis=1).any() for q in path)
 
@@ -144,6 +149,16 @@ def test_the_ball_prefilter_changes_nothing(panda, monkeypatch):
     filtered = elastic_band(ctx, path, settings)
     monkeypatch.setattr(elastic_band_module, "_near_obstacles", lambda ctx, path, d_min: np.ones(len(path), bool))
     np.testing.assert_array_equal(elastic_band(ctx, path, settings), filtered)
+
+
+def test_a_colliding_input_path_is_refused(panda):
+    """The hand sweeps through a box on the second edge: an error names that edge and link."""
+    low = Obstacle("low box", Box((0.1, 0.1, 0.3)), make_pose(position=[0.633, 0.0, 0.15]))
+    ctx = _context(panda, [low])
+    middle = Q_START.copy()
+    middle[0] = -0.5
+    with pytest.raises(PrehensileError, match=r"edge 1 \(waypoint 1 to 2\) is not: links .*panda.* collide"):
+        elastic_band(ctx, np.stack([Q_START, middle, Q_GOAL]))
 
 
 def test_bad_settings_and_path():
