@@ -32,6 +32,9 @@ def test_robot_info_bundled_json():
     assert joint["lower_deg"] == pytest.approx(np.degrees(joint["lower"]))
     assert info["n_links"] > info["dof"]
     assert all("preshapes" in e for e in info["end_effectors"])
+    assert info["mimic_joints"] == [{"name": "panda_finger_joint2", "follows": "panda_finger_joint1",
+                                     "multiplier": 1.0, "offset": 0.0}]
+    assert "panda_finger_joint2" not in [j["name"] for j in info["joints"]]  # not a variable of q
 
 
 def test_robot_info_table_on_urdf_path():

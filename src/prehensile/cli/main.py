@@ -39,7 +39,7 @@ def robot_info(
                                 help="Bundled robot name (see `prehensile robot list`) or model file path."),
     as_json: bool = typer.Option(False, "--json", help="Print JSON instead of tables."),
 ) -> None:
-    """Degrees of freedom, joints and limits, chains, end effectors and preshapes."""
+    """Degrees of freedom, joints and limits, mimic joints, chains, end effectors and preshapes."""
     info = robot_cmd.robot_info(robot_cmd.load_robot(robot))
     if as_json:
         echo_json(info)
@@ -54,6 +54,11 @@ def robot_info(
                        f"{_fmt(j['upper'])} {unit}",
                        *deg, _fmt(j["velocity"], 2))
     console.print(joints)
+    if info["mimic_joints"]:
+        mimics = Table("mimic joint", "follows", "multiplier", "offset", title="mimic joints (not in q)")
+        for m in info["mimic_joints"]:
+            mimics.add_row(m["name"], m["follows"], _fmt(m["multiplier"], 3), _fmt(m["offset"], 3))
+        console.print(mimics)
     if info["chains"]:
         chains = Table("chain", "base", "tip", "joints", title="chains")
         for c in info["chains"]:

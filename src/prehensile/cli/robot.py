@@ -42,8 +42,21 @@ def joint_rows(model: RobotModel) -> list[dict[str, Any]]:
     return rows
 
 
+def mimic_rows(model: RobotModel) -> list[dict[str, Any]]:
+    """One dict per mimic joint (it follows a joint of q): name, the joint it follows,
+    multiplier and offset (its value = multiplier * followed + offset, rad or m)."""
+    rows = []
+    for link in range(model.n_links):
+        leader = model.mimic_of(link)
+        if leader is not None:
+            rows.append({"name": model.link_joint_names[link], "follows": leader,
+                         "multiplier": float(model.joint_multiplier[link]), "offset": float(model.joint_offset[link])})
+    return rows
+
+
 def robot_info(model: RobotModel) -> dict[str, Any]:
-    """A JSON-ready description: dof, links, joints, chains, end effectors with preshapes."""
+    """A JSON-ready description: dof, links, joints, mimic joints, chains, end effectors with
+    preshapes."""
     return {
         "name": model.name,
         "source": model.source,
@@ -51,6 +64,7 @@ def robot_info(model: RobotModel) -> dict[str, Any]:
         "n_links": model.n_links,
         "root_link": model.link_names[0],
         "joints": joint_rows(model),
+        "mimic_joints": mimic_rows(model),
         "chains": [
             {"name": c.name, "base_link": c.base_link, "tip_link": c.tip_link, "joints": list(c.joint_names)}
             for c in model.chains.values()
