@@ -44,6 +44,21 @@ def test_robot_info_table_on_urdf_path():
         assert text in result.stdout
 
 
+def test_an_mjcf_robot_takes_the_srdf_beside_it_or_the_one_given(tmp_path):
+    """Chains of an MJCF model come from <stem>.srdf next to it, or from --srdf (robot info, ik)."""
+    pytest.importorskip("mujoco")
+    xml = tmp_path / "arm.xml"
+    xml.write_text((Path(__file__).parent / "data" / "mjcf" / "arm7.xml").read_text())
+    group = '<robot name="arm7"><group name="{}"><chain base_link="base" tip_link="{}"/></group></robot>'
+    (tmp_path / "arm.srdf").write_text(group.format("arm", "link7"))
+    (tmp_path / "wrist.srdf").write_text(group.format("wrist", "link4"))
+    chains = [json.loads(_run("robot", "info", xml, *extra, "--json").stdout)["chains"][0]
+              for extra in ([], ["--srdf", tmp_path / "wrist.srdf"])]
+    assert [(c["name"], len(c["joints"])) for c in chains] == [("arm", 7), ("wrist", 4)]
+    solved = _run("ik", xml, "--srdf", tmp_path / "wrist.srdf", "--chain", "wrist", "--target", "0.1", "0.0", "0.3")
+    assert solved.exit_code in (0, 1) and "wrist" in solved.stdout
+
+
 def test_robot_list_names_bundled_robots():
     result = _run("robot", "list")
     assert result.exit_code == 0 and "panda" in result.stdout.split()

@@ -20,6 +20,9 @@ err_console = Console(stderr=True, highlight=False)
 
 EXIT_FREE, EXIT_COLLIDING, EXIT_BAD_INPUT = 0, 1, 2
 
+SRDF_OPTION = typer.Option(None, "--srdf", help="SRDF to apply: planning groups (chains), end effectors, disabled "
+                           "collision pairs (default: <stem>.srdf next to a URDF or MJCF file, if present).")
+
 
 def handles_errors(command):
     """Turn a PrehensileError into one red line on stderr and exit code 2."""

@@ -10,7 +10,7 @@ import typer
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Column, Table
 
-from prehensile.cli.app import bench_app, console, err_console, handles_errors
+from prehensile.cli.app import SRDF_OPTION, bench_app, console, err_console, handles_errors
 from prehensile.errors import PrehensileError
 
 
@@ -25,8 +25,7 @@ def bench_mbm(
     pad: bool = typer.Option(False, "--pad/--no-pad", help="--no-pad: plan on the spherized URDF's balls as they "
                              "are and, when a path fails the exact certification, again with the balls of the "
                              "links that collided padded to cover the meshes; --pad: plan on padded balls only."),
-    srdf: Optional[Path] = typer.Option(None, "--srdf", help="SRDF with the planning groups and disabled collision "
-                                        "pairs (default: <urdf stem>.srdf next to the URDF if present)."),
+    srdf: Optional[Path] = SRDF_OPTION,
     planner: str = typer.Option("rrt_connect", "--planner", help="Our planner."),
     compare_ompl: bool = typer.Option(False, "--compare-ompl", help="Also run OMPL's RRT-Connect on every problem."),
     budget: float = typer.Option(1.0, "--budget", help="Search time limit per problem and planner (s)."),

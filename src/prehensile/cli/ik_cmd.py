@@ -5,13 +5,14 @@ Exit codes: 0 solved, 1 no solution (the status is printed), 2 bad input.
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import List, Optional
 
 import numpy as np
 import typer
 from rich.table import Table
 
-from prehensile.cli.app import app, console, echo_json, handles_errors
+from prehensile.cli.app import SRDF_OPTION, app, console, echo_json, handles_errors
 from prehensile.errors import PrehensileError
 from prehensile.ik import METHODS as JACOBIAN_METHODS
 from prehensile.ik import ChainSolver, CompleteIKSettings, JacobianIKSettings, solve_ik_complete
@@ -104,6 +105,7 @@ def ik(
     ctx: typer.Context,
     robot: str = typer.Argument(..., metavar="ROBOT", help="Bundled robot name or model file path."),
     chain: str = typer.Option(..., "--chain", help="Chain of the robot (see `prehensile robot info`)."),
+    srdf: Optional[Path] = SRDF_OPTION,
     target: Optional[List[str]] = typer.Option(None, "--target", metavar="X Y Z [R P Y]",
                                                help="x y z (m): position only; x y z roll pitch "
                                                "yaw (m, rad): full pose of the chain's tip in the robot's root."),
@@ -119,7 +121,7 @@ def ik(
     from prehensile.cli.robot import load_robot
 
     goal = parse_target(list(target or []) + list(ctx.args))
-    model = load_robot(robot)
+    model = load_robot(robot, srdf)
     result = solve_query(model, chain, goal, method, seed, budget)
     data = report(model, chain, method, goal, result)
     if as_json:

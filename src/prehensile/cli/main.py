@@ -2,7 +2,7 @@
 
 Commands::
 
-    prehensile robot info NAME|PATH [--json]
+    prehensile robot info NAME|PATH [--srdf SRDF] [--json]
     prehensile fk NAME|PATH [--q v1 v2 ...] [--link L] [--json]
     prehensile check SCENE [--exact | --spheres] [--json]
     prehensile demo [--out DIR]
@@ -20,7 +20,7 @@ import typer
 from rich.table import Table
 
 from prehensile.cli import robot as robot_cmd
-from prehensile.cli.app import EXIT_COLLIDING, EXIT_FREE, app, console, echo_json, handles_errors
+from prehensile.cli.app import EXIT_COLLIDING, EXIT_FREE, SRDF_OPTION, app, console, echo_json, handles_errors
 from prehensile.errors import PrehensileError
 
 robot_app = typer.Typer(help="Inspect robot models.", no_args_is_help=True)
@@ -37,10 +37,11 @@ def _fmt(value: float | None, digits: int = 4, unlimited: str = "inf") -> str:
 def robot_info(
     robot: str = typer.Argument(..., metavar="ROBOT",
                                 help="Bundled robot name (see `prehensile robot list`) or model file path."),
+    srdf: Optional[Path] = SRDF_OPTION,
     as_json: bool = typer.Option(False, "--json", help="Print JSON instead of tables."),
 ) -> None:
     """Degrees of freedom, joints and limits, mimic joints, chains, end effectors and preshapes."""
-    info = robot_cmd.robot_info(robot_cmd.load_robot(robot))
+    info = robot_cmd.robot_info(robot_cmd.load_robot(robot, srdf))
     if as_json:
         echo_json(info)
         return

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -13,11 +14,12 @@ from prehensile.model.robot_model import PRISMATIC, RobotModel
 from prehensile.spatial import matrix_to_rpy
 
 
-def load_robot(name_or_path: str) -> RobotModel:
-    """A bundled robot by name or a model file by path (through ``prehensile.robots.load``)."""
+def load_robot(name_or_path: str, srdf: Path | None = None) -> RobotModel:
+    """A bundled robot by name or a model file by path, with an SRDF if given (through
+    ``prehensile.robots.load``)."""
     from prehensile import robots
 
-    return robots.load(name_or_path)
+    return robots.load(name_or_path, srdf)
 
 
 def joint_rows(model: RobotModel) -> list[dict[str, Any]]:

@@ -9,8 +9,8 @@ Names:
   8 DoF (7 arm joints and ``panda_finger_joint1``; ``panda_finger_joint2`` is its URDF mimic),
   with prehensile's own SRDF (chain ``arm`` to ``panda_hand_tcp``, end effector ``hand``).
 
-Paths: a ``.urdf`` (an ``.srdf`` of the same stem next to it is applied automatically unless
-``srdf`` is given), an MJCF ``.xml`` (root ``<mujoco>``) or a Simox ``.xml`` (root ``<Robot>``).
+Paths: a ``.urdf`` or an MJCF ``.xml`` (root ``<mujoco>``); an ``.srdf`` of the same stem next
+to it is applied automatically unless ``srdf`` is given. Or a Simox ``.xml`` (root ``<Robot>``).
 
 Models are immutable, so bundled ones are loaded once and shared (``functools.lru_cache``).
 """
@@ -70,7 +70,8 @@ def load_path(path: str | Path, srdf: str | Path | None = None) -> RobotModel:
 
     Args:
         path: ``.urdf``, MJCF ``.xml`` (``<mujoco>``) or Simox ``.xml`` (``<Robot>``).
-        srdf: semantic description to apply; for a URDF, ``<stem>.srdf`` next to it by default.
+        srdf: semantic description to apply; for a URDF or MJCF file, ``<stem>.srdf`` next to
+            it by default.
 
     Raises:
         ModelError: missing file, unknown suffix or root element, or any loader error.
@@ -79,26 +80,20 @@ def load_path(path: str | Path, srdf: str | Path | None = None) -> RobotModel:
     if not path.is_file():
         raise ModelError(f"{path}: file not found")
     suffix = path.suffix.lower()
-    if suffix == ".urdf":
-        from prehensile.model.urdf import load_urdf
-
-        sibling = path.with_suffix(".srdf")
-        return load_urdf(path, srdf if srdf is not None else (sibling if sibling.is_file() else None))
-    if suffix != ".xml":
+    if suffix not in (".urdf", ".xml"):
         raise ModelError(f"{path}: unknown robot file type '{suffix}'; valid: .urdf, .xml (MJCF or Simox)")
-    tag = _root_tag(path)
-    if tag == "mujoco":
-        from prehensile.model.mjcf import load_mjcf
-
-        model = load_mjcf(path)
-    elif tag == "Robot":
+    tag = "robot" if suffix == ".urdf" else _root_tag(path)
+    if tag == "Robot":  # Simox XML: its own node sets and end effectors; an SRDF only if given
         from prehensile.model.simox import load_simox
 
         model = load_simox(path)
-    elif tag == "robot":
+    elif tag in ("mujoco", "robot"):
+        from prehensile.model.mjcf import load_mjcf
         from prehensile.model.urdf import load_urdf
 
-        model = load_urdf(path)
+        model = load_mjcf(path) if tag == "mujoco" else load_urdf(path)
+        sibling = path.with_suffix(".srdf")
+        srdf = srdf if srdf is not None or not sibling.is_file() else sibling
     else:
         raise ModelError(
             f"{path}: root element <{tag}> is not a robot description; valid: <mujoco> (MJCF), "
