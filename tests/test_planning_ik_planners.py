@@ -143,8 +143,9 @@ def test_multi_eef_rrt_names_missing_samplers_and_contexts(panda_scene):
 
 
 def test_settings_are_validated():
-    with pytest.raises(PrehensileError, match="IKRRTSettings: the budgets must be positive"):
-        IKRRTSettings(time_budget_s=-1.0)
+    for bad in ({"time_budget_s": -1.0}, {"ik_attempts": 0}, {"first_round_iterations": 0}):
+        with pytest.raises(PrehensileError, match="IKRRTSettings: the budgets .*must be positive"):
+            IKRRTSettings(**bad)
     for bad in ({"goal_probability": 2.0}, {"time_budget_s": 0.0}, {"max_nodes": 0}):
         with pytest.raises(PrehensileError, match="JPlusRRTSettings: need"):
             JPlusRRTSettings(**bad)
@@ -190,6 +191,10 @@ def test_bimanual_and_hand_over_ik_rrt(armar):
     sampler = dual_arm_sampler(ctx, [left, right], [T_left[None], T_right[None]], q0, free="Torso")
     result = ik_rrt(ctx, q0, sampler, IKRRTSettings(time_budget_s=10.0), rng=0)
     assert result.success and result.info["goal"]["grasps"] == (0, 0)
+    # IK attempts and search iterations, not seconds, end the rounds: the same seed, the same path
+    again = ik_rrt(ctx, q0, dual_arm_sampler(ctx, [left, right], [T_left[None], T_right[None]], q0, free="Torso"),
+                   IKRRTSettings(time_budget_s=10.0), rng=0)
+    np.testing.assert_array_equal(again.path, result.path)
     assert_valid_path(ctx, result.path, q0)
     assert np.linalg.norm(left.tool_pose(result.path[-1])[:3, 3] - T_left[:3, 3]) <= 1e-4
     # hand-over: the object sits at the left TCP; the right hand holds it by a fixed grasp

@@ -244,6 +244,19 @@ def test_a_continuous_joint_turns_the_shorter_way_unless_it_is_blocked(blocked):
     assert (turned.min(), turned.max()) == ((-2.8, 2.8) if blocked else (2.8, pytest.approx(reached[0])))
 
 
+def test_a_search_stops_at_its_iteration_cap(arm):
+    """Capped calls run exactly the iterations asked (the clock is far away) and resume."""
+    model, spheres = arm
+    slot = [_box(f"side {y}", [0.7, y, 0.1], [1.0, 0.04, 0.4]) for y in (-0.1, 0.1)]
+    ctx = PlanningContext(model, slot, spheres=spheres)
+    search = RRTConnectSearch(ctx, np.zeros(3), FAST, 0)  # stretched out in a slot it cannot leave
+    search.add_goals(np.array([np.pi / 2, 0.0, 0.0]))
+    first, second = search.solve(5.0, max_iterations=40), search.solve(5.0, max_iterations=25)
+    assert (first.status, first.stats.iterations, second.stats.iterations) == (PlanStatus.TIMEOUT, 40, 25)
+    with pytest.raises(PrehensileError, match="max_iterations must be a positive integer"):
+        search.solve(1.0, max_iterations=0)
+
+
 def test_search_resumes_its_trees_and_takes_goals_added_later(arm):
     model, spheres = arm
     # the wall of the infeasible problem above: from +x the arm cannot reach -x
@@ -622,7 +635,7 @@ def test_a_robot_standing_on_a_table_plans():
     ({"obstacles": [Obstacle("ball", Sphere(0.1), np.diag([2.0, 2.0, 2.0, 1.0]))]}, "not a rotation matrix"),
     ({"T_world_base": np.full((4, 4), np.nan)}, "T_world_base: contains NaN"),
     ({"T_world_base": np.eye(3)}, r"T_world_base: expected shape \(\.\.\., 4, 4\)"),
-    ({"q_ref": np.zeros((1, 3))}, r"q_ref: expected one configuration \(3,\), got \(1, 3\)"),
+    ({"q_ref": np.zeros((1, 3))}, r"q_ref: expected one configuration \(3,\) for robot .arm., got shape \(1, 3\)"),
     ({"acm": np.zeros((3, 3), dtype=bool)}, r"acm must be \(\d+, \d+\)"),
 ])
 def test_bad_context_inputs_are_errors(arm, kwargs, message):

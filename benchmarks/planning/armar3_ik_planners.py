@@ -93,7 +93,7 @@ def hand_over_runs(model, spheres, with_obstacle: bool, runs: int) -> dict:
     started = time.perf_counter()
     samplers = {region: regrasp_sampler(ctx, arms, grasps, region, q0, free="Torso") for region in (None, UPRIGHT)}
     setup_s = time.perf_counter() - started
-    ik_settings = IKRRTSettings(time_budget_s=60.0, ik_budget_s=0.05)
+    ik_settings = IKRRTSettings(time_budget_s=60.0)
     planners = {
         ("free", "Regrasp-J+-RRT"): lambda seed: regrasp_jplus_rrt(ctx, q0, arms, grasps, free="Torso",
                                                                   settings=JPlusRRTSettings(time_budget_s=60.0),

@@ -236,10 +236,7 @@ class ExactChecker:
 
     def _one(self, q: np.ndarray, what: str) -> np.ndarray:
         """Link poses (1, L, 4, 4) of one configuration q (dof,); PrehensileError otherwise."""
-        q = self.model.check_configuration(q)
-        if q.shape != (self.model.dof,):
-            raise PrehensileError(f"ExactChecker.{what}: expected one configuration ({self.model.dof},), got {q.shape}")
-        return self._poses(q)
+        return self._poses(self.model.check_one(q, f"ExactChecker.{what}"))
 
     def _centers(self, poses: np.ndarray) -> np.ndarray:
         """World centres (B, G, 3) of the geometries' enclosing balls for link poses (B, L, 4, 4)."""

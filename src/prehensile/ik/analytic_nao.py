@@ -411,9 +411,7 @@ def nao_arm_ik(model: RobotModel, chain: str, target: np.ndarray, q_seed: np.nda
     start = clock()
     arm = _arm(model, chain)
     poses = check_target_poses(target)
-    seed = model.neutral_configuration() if q_seed is None else model.check_configuration(q_seed, "q_seed").copy()
-    if seed.shape != (model.dof,):
-        raise PrehensileError(f"q_seed: expected shape ({model.dof},), got {seed.shape}")
+    seed = model.neutral_configuration() if q_seed is None else model.check_one(q_seed, "q_seed").copy()
     q, err, counts = _solve(arm, poses, tolerance)
     for index in np.flatnonzero(counts):
         chain_q, chain_err = q[index, :counts[index]], err[index, :counts[index]]

@@ -37,10 +37,19 @@ class HybridIKSettings:
     Attributes:
         time_budget_s: wall-time budget (s).
         arm_restarts: random restarts per arm for one sample of the free joints.
+        max_samples: cap on the samples of the free joints (None: only the budget limits them);
+            with a cap that the budget does not cut, a seed gives the same result.
     """
 
     time_budget_s: float = 0.05
     arm_restarts: int = 4
+    max_samples: int | None = None
+
+    def __post_init__(self) -> None:
+        if not (self.time_budget_s > 0 and self.arm_restarts >= 0
+                and (self.max_samples is None or self.max_samples >= 1)):
+            raise PrehensileError(f"HybridIKSettings: need time_budget_s > 0, arm_restarts >= 0 and max_samples >= 1 "
+                                  f"or None, got {self}")
 
 
 def solve_ik_hybrid(arms: Sequence[ChainSolver], targets: Sequence[np.ndarray], free: Sequence[str] | str | None = None,
@@ -60,7 +69,8 @@ def solve_ik_hybrid(arms: Sequence[ChainSolver], targets: Sequence[np.ndarray], 
             filter; each arm's own solution is not tested alone (the other arm may collide).
 
     Returns:
-        :class:`IKResult` with ``target_indices`` the pose reached per arm; TIMEOUT if none.
+        :class:`IKResult` with ``target_indices`` the pose reached per arm; TIMEOUT (budget
+        spent) or NOT_CONVERGED (``max_samples`` reached) if none.
     """
     if len(arms) != len(targets) or not arms:
         raise PrehensileError(f"solve_ik_hybrid: {len(arms)} arms but {len(targets)} targets")
@@ -94,9 +104,10 @@ def solve_ik_hybrid(arms: Sequence[ChainSolver], targets: Sequence[np.ndarray], 
             if is_valid is None or is_valid(q):
                 return IKResult(IKStatus.SUCCESS, q.copy(), q[None].copy(), best[0], best[1], iterations,
                                 clock() - start, reached[0], samples - 1, tuple(reached))
-        if clock() - start >= settings.time_budget_s:
-            return IKResult(IKStatus.TIMEOUT, q.copy(), np.zeros((0, model.dof)), best[0], best[1], iterations,
-                            clock() - start, 0, samples - 1)
+        capped = settings.max_samples is not None and samples >= settings.max_samples
+        if capped or clock() - start >= settings.time_budget_s:
+            return IKResult(IKStatus.NOT_CONVERGED if capped else IKStatus.TIMEOUT, q.copy(),
+                            np.zeros((0, model.dof)), best[0], best[1], iterations, clock() - start, 0, samples - 1)
 
 
 @dataclass(frozen=True)
@@ -135,7 +146,8 @@ def solve_regrasp_ik(arms: Sequence[ChainSolver], grasps: Sequence[np.ndarray], 
                      free: Sequence[str] | str | None = None, q_seed: np.ndarray | None = None,
                      rng: np.random.Generator | int | None = None, time_budget_s: float = 0.5, batch: int = 16,
                      is_valid: Callable[[np.ndarray], bool] | None = None, pairs: np.ndarray | None = None,
-                     reach: Sequence[ReachSamples] | None = None) -> tuple[IKResult, np.ndarray | None]:
+                     reach: Sequence[ReachSamples] | None = None, max_batches: int | None = None
+                     ) -> tuple[IKResult, np.ndarray | None]:
     """Hand-over IK (Vahrenkamp Alg. 8): an object pose where both hands hold it.
 
     The thesis samples object poses, keeps those where both grasps are reachable
@@ -158,6 +170,8 @@ def solve_regrasp_ik(arms: Sequence[ChainSolver], grasps: Sequence[np.ndarray], 
         q_seed: (dof,) values of every other joint; neutral if None.
         time_budget_s: wall-time budget (s).
         batch: attempts per compiled call.
+        max_batches: cap on the batches of attempts (None: only the budget limits them); with
+            a cap that the budget does not cut, a seed gives the same result.
         is_valid: acceptance test of a solution (dof,), e.g. a collision filter.
         pairs: (P, 2) the grasp pairs (index per hand) worth trying; all if None.
         reach: per arm the samples that seed it: :func:`~prehensile.ik.reach.reach_samples`
@@ -165,7 +179,8 @@ def solve_regrasp_ik(arms: Sequence[ChainSolver], grasps: Sequence[np.ndarray], 
 
     Returns:
         (result, T_world_object (4, 4) or None); ``result.target_indices`` are the grasps,
-        ``restarts`` the attempts before the accepted one. UNREACHABLE if ``pairs`` is empty.
+        ``restarts`` the attempts before the accepted one. UNREACHABLE if ``pairs`` is empty,
+        else TIMEOUT (budget spent) or NOT_CONVERGED (``max_batches`` tried) if none.
     """
     start = clock()
     rng = np.random.default_rng(rng)
@@ -178,8 +193,9 @@ def solve_regrasp_ik(arms: Sequence[ChainSolver], grasps: Sequence[np.ndarray], 
     bounds = UNBOUNDED if region is None else region.bounds()
     T_a_b = _base_offset(pair, q0) if region is None else None
     q, T = q0.copy(), np.eye(4)
-    attempts = iterations = 0
-    while len(pairs) and clock() - start < time_budget_s:
+    attempts = iterations = batches = 0
+    while len(pairs) and clock() - start < time_budget_s and (max_batches is None or batches < max_batches):
+        batches += 1
         if region is None:  # held by hand b at one of its samples (in its base frame)
             chosen = pairs[rng.integers(len(pairs), size=FREE_CANDIDATES * batch)]
             tools = reach[1].poses[rng.integers(len(reach[1].poses), size=len(chosen))]
@@ -205,7 +221,8 @@ def solve_regrasp_ik(arms: Sequence[ChainSolver], grasps: Sequence[np.ndarray], 
                 return IKResult(IKStatus.SUCCESS, q.copy(), q[None].copy(), pos_err, rot_err, iterations,
                                 clock() - start, indices[0], attempts - 1, indices), T.copy()
             seeds, objects, chosen = seeds[found + 1:], objects[found + 1:], chosen[found + 1:]
-    status = IKStatus.TIMEOUT if len(pairs) else IKStatus.UNREACHABLE
+    status = (IKStatus.UNREACHABLE if not len(pairs) else
+              IKStatus.NOT_CONVERGED if max_batches is not None and batches >= max_batches else IKStatus.TIMEOUT)
     return IKResult(status, q0, np.zeros((0, len(q0))), np.inf, np.inf, iterations, clock() - start, 0,
                     attempts), None
 

@@ -234,6 +234,16 @@ class RobotModel:
             raise PrehensileError(f"{what}: contains NaN or infinite values")
         return q
 
+    def check_one(self, q: np.ndarray, what: str = "q") -> np.ndarray:
+        """Validate one configuration q (dof,) (as :meth:`check_configuration`, and no batch)."""
+        q = self.check_configuration(q, what)
+        if q.shape != (self.dof,):
+            from prehensile.errors import PrehensileError
+
+            raise PrehensileError(f"{what}: expected one configuration ({self.dof},) for robot '{self.name}', "
+                                  f"got shape {q.shape}")
+        return q
+
     def configuration_from_dict(self, values: Mapping[str, float], base: np.ndarray | None = None) -> np.ndarray:
         """q (dof,) with the named joints set and the rest taken from ``base`` (default neutral)."""
         q = self.neutral_configuration() if base is None else np.array(base, dtype=float)

@@ -439,19 +439,14 @@ class PlanningContext:
                                       "build it with ChainSolver(..., T_world_root=ctx.T_world_base)")
         if q_ref is None:
             return None
-        q = self.model.check_configuration(q_ref, f"{who}: q_ref")
-        if q.shape != (self.model.dof,):
-            raise PrehensileError(f"{who}: q_ref must be one configuration ({self.model.dof},), got {q.shape}")
-        return q
+        return self.model.check_one(q_ref, f"{who}: q_ref")
 
     def why_invalid(self, q: np.ndarray) -> str:
         """Why a planner may reject q (dof,) as a path end (INVALID_START / INVALID_GOAL), in
         words: the joints outside their limits, else the contacts on the exact geometry (link,
         what it touches, depth), else the links whose conservative balls collide although the
         geometry is free; "" if q is within the limits and the balls are free."""
-        q = self.model.check_configuration(q)
-        if q.shape != (self.model.dof,):
-            raise PrehensileError(f"why_invalid: expected one configuration ({self.model.dof},), got {q.shape}")
+        q = self.model.check_one(q, "why_invalid")
         names, lower, upper = self.model.joint_names, self.model.lower, self.model.upper
         outside = np.flatnonzero(~((q >= lower - 1e-9) & (q <= upper + 1e-9)))
         if len(outside):
@@ -477,10 +472,7 @@ class PlanningContext:
         ``resolution`` (m, default the context's) where the clearance is small."""
         from prehensile.planning import kernels
 
-        qa = self.model.check_configuration(qa, "qa")
-        qb = self.model.check_configuration(qb, "qb")
-        if qa.shape != (self.model.dof,) or qb.shape != (self.model.dof,):
-            raise PrehensileError(f"check_motion: expected two configurations ({self.model.dof},)")
+        qa, qb = self.model.check_one(qa, "check_motion: qa"), self.model.check_one(qb, "check_motion: qb")
         res = self._motion_resolution(qa, qb, resolution)
         if self.spheres.static_hit or not (self.model.within_limits(qa) and self.model.within_limits(qb)
                                            and self._static_free_at(qa)):

@@ -92,9 +92,7 @@ class ConfigurationSpace:
         self.indices = np.ascontiguousarray(indices, dtype=np.int64)
         self.fixed = np.setdiff1d(np.arange(model.dof), self.indices)
         """(dof - n,) indices of the variables not planned (held at ``q_ref``)."""
-        self.q_ref = model.neutral_configuration() if q_ref is None else model.check_configuration(q_ref, "q_ref").copy()
-        if self.q_ref.shape != (model.dof,):
-            raise PrehensileError(f"q_ref: expected one configuration ({model.dof},), got {self.q_ref.shape}")
+        self.q_ref = model.neutral_configuration() if q_ref is None else model.check_one(q_ref, "q_ref").copy()
         self.lower, self.upper = model.lower[self.indices], model.upper[self.indices]
         """(n,) limits of the planned joints (rad or m; +-inf for continuous joints)."""
         self.continuous = model.continuous[self.indices]

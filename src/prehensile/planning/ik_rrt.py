@@ -40,31 +40,41 @@ from prehensile.planning.seeding import planner_rng
 from prehensile.spatial.transforms import invert
 
 # a goal sampler draws one goal configuration (dof,) or None, and what it reached (grasp
-# indices, object pose, ...), within a time budget (s); "grasp" is the index of a single
-# target pose reached (the planners' ``goal_index``)
-GoalSampler = Callable[[np.random.Generator, float], tuple[np.ndarray | None, dict]]
+# indices, object pose, ...), from (rng, attempts, budget): a fixed amount of IK work (its
+# unit is the sampler's), cut short only by a time budget (s); "grasp" is the index of a
+# single target pose reached (the planners' ``goal_index``)
+GoalSampler = Callable[[np.random.Generator, int, float], tuple[np.ndarray | None, dict]]
 
 
 @dataclass(frozen=True)
 class IKRRTSettings:
     """Settings of :func:`ik_rrt` and :func:`multi_eef_rrt`.
 
+    Sampling and search rounds are counted in attempts and iterations, not seconds, so a
+    seed gives the same path on any machine unless a time limit cuts in.
+
     Attributes:
         time_budget_s: total budget (s), IK sampling included.
-        ik_budget_s: budget of one IK sample (s).
-        first_round_s: search budget of the first round (s); it doubles every round.
+        ik_attempts: IK attempts per goal sample (random restarts of :func:`grasp_sampler`,
+            free-joint samples of :func:`dual_arm_sampler`, batches of 16 object poses of
+            :func:`regrasp_sampler`).
+        ik_budget_s: time limit of one goal sample (s), a safeguard.
+        first_round_iterations: search iterations of the first round; they double every round.
         rrt: settings of the bidirectional search (shortcutting, certification, step; its
             time budget is not used).
     """
 
     time_budget_s: float = 5.0
-    ik_budget_s: float = 0.02
-    first_round_s: float = 0.01
+    ik_attempts: int = 8
+    ik_budget_s: float = 1.0
+    first_round_iterations: int = 256
     rrt: RRTConnectSettings = RRTConnectSettings()
 
     def __post_init__(self) -> None:
-        if not (self.time_budget_s > 0 and self.ik_budget_s > 0 and self.first_round_s > 0):
-            raise PrehensileError(f"IKRRTSettings: the budgets must be positive (s), got {self}")
+        if not (self.time_budget_s > 0 and self.ik_budget_s > 0 and self.ik_attempts >= 1
+                and self.first_round_iterations >= 1):
+            raise PrehensileError(f"IKRRTSettings: the budgets (s), attempts and iterations must be positive, "
+                                  f"got {self}")
 
 
 class _Search:
@@ -76,21 +86,22 @@ class _Search:
         self.ctx, self.sampler, self.settings = ctx, sampler, settings
         self.search = RRTConnectSearch(ctx, q_start, settings.rrt, rng)
         self.infos: list[dict] = []
-        self.round_s = settings.first_round_s
+        self.round_iterations = settings.first_round_iterations
         self.iterations = self.nodes = self.checks = 0
         self.search_s = self.simplify_s = self.certify_s = 0.0
 
     def step(self, rng: np.random.Generator, deadline: float) -> PlanResult | None:
         """Sample one goal, then search a round; a finished PlanResult, or None to go on."""
-        q, info = self.sampler(rng, min(self.settings.ik_budget_s, max(deadline - clock(), 0.0)))
+        q, info = self.sampler(rng, self.settings.ik_attempts,
+                               min(self.settings.ik_budget_s, max(deadline - clock(), 0.0)))
         if q is not None and bool(self.ctx.is_valid(q)):
             self.infos.append(info)
             self.search.add_goals(q, deadline)
         remaining = deadline - clock()
         if not self.infos or remaining <= 0:
             return None
-        result = self.search.solve(min(self.round_s, remaining))
-        self.round_s *= 2.0
+        result = self.search.solve(remaining, self.round_iterations)
+        self.round_iterations *= 2
         s = result.stats
         self.iterations += s.iterations
         self.nodes = max(self.nodes, s.nodes)
@@ -184,12 +195,12 @@ def grasp_sampler(ctx: PlanningContext, solver: ChainSolver, target_poses: np.nd
 
     calls = [0]
 
-    def sample(rng: np.random.Generator, budget: float):
+    def sample(rng: np.random.Generator, attempts: int, budget: float):
         # the first seed is q_ref itself: the solution nearest to it (q_ref when it reaches a pose)
         seed = q_ref if calls[0] == 0 else _random_seed([solver], q_ref, rng)
         calls[0] += 1
-        result = solve_ik_complete(solver, targets, seed, rng, CompleteIKSettings(time_budget_s=max(budget, 1e-6)),
-                                   is_valid=lambda q: bool(ctx.is_valid(q)))
+        settings = CompleteIKSettings(time_budget_s=max(budget, 1e-6), max_restarts=attempts)
+        result = solve_ik_complete(solver, targets, seed, rng, settings, is_valid=lambda q: bool(ctx.is_valid(q)))
         return (result.q, {"grasp": result.target_index}) if result.success else (None, {})
 
     return sample
@@ -201,9 +212,9 @@ def dual_arm_sampler(ctx: PlanningContext, arms: Sequence[ChainSolver], target_p
     q_ref = ctx.check_solvers(arms, "dual_arm_sampler", q_ref)
     check_arm_pair(arms, "dual_arm_sampler")
 
-    def sample(rng: np.random.Generator, budget: float):
+    def sample(rng: np.random.Generator, attempts: int, budget: float):
         result = solve_ik_hybrid(arms, target_poses, free, _random_seed(arms, q_ref, rng), rng,
-                                 HybridIKSettings(time_budget_s=max(budget, 1e-6)),
+                                 HybridIKSettings(time_budget_s=max(budget, 1e-6), max_samples=attempts),
                                  is_valid=lambda q: bool(ctx.is_valid(q)))
         return (result.q, {"grasps": result.target_indices}) if result.success else (None, {})
 
@@ -224,10 +235,10 @@ def regrasp_sampler(ctx: PlanningContext, arms: Sequence[ChainSolver], grasps: S
     pairs = separate_grasp_pairs(ctx, arms, grasps)
     reach = [self_free_reach(ctx, arm) for arm in arms]
 
-    def sample(rng: np.random.Generator, budget: float):
+    def sample(rng: np.random.Generator, attempts: int, budget: float):
         result, T_world_object = solve_regrasp_ik(arms, grasps, region, free, q_ref, rng,
                                                   time_budget_s=max(budget, 1e-6), pairs=pairs, reach=reach,
-                                                  is_valid=lambda q: bool(ctx.is_valid(q)))
+                                                  is_valid=lambda q: bool(ctx.is_valid(q)), max_batches=attempts)
         if not result.success:
             return None, {}
         return result.q, {"grasps": result.target_indices, "T_world_object": T_world_object}

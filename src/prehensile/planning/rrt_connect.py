@@ -390,9 +390,7 @@ class RRTConnectSearch:
         self.ctx, self.settings = ctx, settings
         self.rng = planner_rng(rng)
         model = ctx.model
-        self.start = model.check_configuration(q_start, "q_start")
-        if self.start.shape != (model.dof,):
-            raise PrehensileError(f"rrt_connect: q_start must be ({model.dof},), got {self.start.shape}")
+        self.start = model.check_one(q_start, "rrt_connect: q_start")
         self.goals = np.zeros((0, model.dof))  # the goals as planned (ConfigurationSpace.goal_turns)
         self.goal_of = np.zeros(0, dtype=np.int64)  # row of the goals as given, per row of self.goals
         self.given = 0  # goals given
@@ -476,16 +474,18 @@ class RRTConnectSearch:
             self.context, self.refined = finer, links
         self.trees = None
 
-    def _run(self, deadline: float) -> tuple[np.ndarray | None, int]:
-        """Resume the search until ``deadline`` (s, :func:`~prehensile.clock.clock`); (path or None,
-        goal root)."""
+    def _run(self, deadline: float, iterations: int) -> tuple[np.ndarray | None, int]:
+        """Resume the search until ``deadline`` (s, :func:`~prehensile.clock.clock`) or for at most
+        ``iterations``; (path or None, goal root)."""
         space, trees, settings = self.context.space, self.trees, self.settings
         work = (*space.sampling_bounds(self.start[space.indices]), self.start.copy(), self.context.spheres.data,
                 self.context.scratch, self.context.motion_arrays(self.res))
         # a quarter of the time left at a guessed 20 us per iteration (most take 5 to 50), at most 128
         chunk = int(min(max(0.25 * (deadline - clock()) / 20e-6, 1), 128))
+        last = trees.counters[ITERATIONS] + iterations
         while True:
             begun, before = clock(), trees.counters[ITERATIONS]
+            chunk = min(chunk, last - before)
             code = search(trees.nodes, trees.parents, trees.flags, trees.points, trees.work, trees.counters, trees.path,
                           trees.marks, trees.owner, settings.shortcut, self.state, chunk, settings.step, self.res,
                           settings.eager_checks, space.indices, space.weights, *work)
@@ -493,14 +493,17 @@ class RRTConnectSearch:
             now = clock()
             if code == FOUND:
                 return trees.path[:trees.counters[PATH_LENGTH]].copy(), int(trees.counters[GOAL_ROOT])
-            if code == FULL and not trees.grow(settings.max_nodes) or now >= deadline:
+            if (code == FULL and not trees.grow(settings.max_nodes) or now >= deadline
+                    or trees.counters[ITERATIONS] >= last):
                 return None, -1
             per_iteration = (now - begun) / max(trees.counters[ITERATIONS] - before, 1)
             # a quarter of the time left, growing at most twofold (iterations slow down as trees grow)
             chunk = int(min(max(0.25 * (deadline - now) / max(per_iteration, 1e-7), 1), 2 * chunk))
 
-    def solve(self, time_budget_s: float) -> PlanResult:
-        """Search for up to ``time_budget_s`` (s, > 0) more, from where the last call stopped.
+    def solve(self, time_budget_s: float, max_iterations: int | None = None) -> PlanResult:
+        """Search for up to ``time_budget_s`` (s, > 0) more, from where the last call stopped,
+        and at most ``max_iterations`` iterations (None: no cap; a search that stops at the
+        cap, not the clock, resumes the same way on any machine).
 
         Returns:
             :class:`PlanResult` with this call's statistics (see :func:`rrt_connect`).
@@ -509,6 +512,9 @@ class RRTConnectSearch:
                 and time_budget_s > 0):
             raise PrehensileError(f"RRTConnectSearch.solve: time_budget_s must be a positive number (s), "
                                   f"got {time_budget_s!r}")
+        if max_iterations is not None and not (isinstance(max_iterations, (int, np.integer)) and max_iterations >= 1):
+            raise PrehensileError(f"RRTConnectSearch.solve: max_iterations must be a positive integer or None, "
+                                  f"got {max_iterations!r}")
         t0 = clock() - self._setup_s
         self._setup_s = 0.0
         deadline = t0 + time_budget_s
@@ -528,7 +534,7 @@ class RRTConnectSearch:
                     return PlanResult(status, empty, PlanStats(plan_time_s=clock() - t0))
                 break
             before = self.trees.counters.copy()
-            path, root = self._run(deadline)
+            path, root = self._run(deadline, NO_LIMIT if max_iterations is None else max_iterations)
             counters = self.trees.counters - before
             totals["plan_time_s"] += clock() - (t0 if attempt == 0 else begun)
             totals["iterations"] += int(counters[ITERATIONS])
