@@ -96,6 +96,14 @@ def test_goal_in_collision_exits_1(tmp_path):
     assert not (tmp_path / "trajectory.json").exists() and (tmp_path / "plan.png").is_file()
 
 
+def test_a_target_out_of_reach_says_why(tmp_path):
+    result = _plan("plan_demo", "--chain", "arm", "--target", "2.0", "0", "0.5", "3.14", "0", "0", "--budget", "0.3",
+                   "--out", tmp_path)
+    assert result.exit_code == 1, result.output
+    path = json.loads((tmp_path / "path.json").read_text())
+    assert path["status"] == "no_goal_configuration" and "out of reach" in path["reason"]
+
+
 def test_an_end_only_coarse_balls_reject_is_explained_and_finer_balls_plan(tmp_path):
     """ARMAR-III's default balls on its torso box overlap the arm at the demo's start."""
     args = ["demo", "--robot", "armar3", "--chain", "LeftArm", "--goal", "0.3", "0.2", "0", "0.5", "0", "0", "0",

@@ -11,7 +11,7 @@ from prehensile.collision import Obstacle
 from prehensile.collision.spheres import generate_sphere_model
 from prehensile.errors import PrehensileError
 from prehensile.ik import ChainSolver, ObjectRegion
-from prehensile.model.geometry import Box
+from prehensile.model.geometry import Box, Cylinder
 from prehensile.planning import PlanningContext, PlanStatus, certify_path
 from prehensile.planning.ik_rrt import (IKRRTSettings, dual_arm_sampler, grasp_sampler, ik_rrt, multi_eef_rrt,
                                         regrasp_sampler)
@@ -67,6 +67,28 @@ def test_ik_rrt_reaches_a_grasp(panda_scene):
     assert np.linalg.norm(solver.tool_pose(result.path[-1])[:3, 3] - goals[grasp, :3, 3]) <= 1e-4
     again = ik_rrt(ctx, q0, grasp_sampler(ctx, solver, goals, q0), rng=0)  # None is seed 0
     assert np.array_equal(again.path, result.path)
+
+
+@pytest.mark.parametrize("planner", ["ik_rrt", "jplus_rrt"])
+def test_a_grasp_around_a_can_that_only_the_balls_reject_is_reached(planner):
+    """Open fingers around a 3 cm can: free on the meshes, the hand's balls touch the can. The
+    IK goal is kept (IK-RRT) and the last Jacobian steps are certified exactly (J+-RRT)."""
+    model = robots.load("panda")
+    start = np.array([0.0, -0.3, 0.0, -2.2, 0.0, 2.0, 0.785, 0.04])
+    grasp = np.array([0.0, 0.3, 0.0, -2.0, 0.0, 2.3, 0.785, 0.04])
+    solver = ChainSolver(model, "arm")
+    T_grasp = solver.tool_pose(grasp)
+    can = Obstacle("can", Cylinder(0.015, 0.06), T_grasp)
+    ctx = PlanningContext(model, [can], joints="arm", q_ref=start)
+    assert not ctx.is_valid(grasp) and ctx.exact.is_free(grasp) and ctx.is_usable_end(grasp)
+    if planner == "ik_rrt":
+        result = ik_rrt(ctx, start, grasp_sampler(ctx, solver, T_grasp[None], start), IKRRTSettings(5.0), rng=0)
+    else:
+        result = jplus_rrt(ctx, start, T_grasp[None], JPlusRRTSettings(5.0), rng=0)
+    assert result.success and result.goal_index == 0
+    assert_valid_path(ctx, result.path, start)
+    assert np.linalg.norm(solver.tool_pose(result.path[-1])[:3, 3] - T_grasp[:3, 3]) <= 1e-3
+    assert not ctx.is_valid(result.path[-1])  # the balls still touch the can there
 
 
 def test_ik_rrt_to_a_pose_the_start_reaches_stays_there(panda_scene):

@@ -128,12 +128,13 @@ def plan_to_target(context, placed: PlacedRobot, chain: str, planner: str, targe
 
 def plan_report(result, ctx, scene: Path, robot: PlacedRobot, q_goal: np.ndarray | None, target: np.ndarray | None,
                 planner: str, seed: int) -> dict:
-    """The JSON of ``path.json``: start, goal (the configuration reached, for a target pose)
+    """The JSON of ``path.json``: start, goal (the configuration reached on success: for a
+    target pose, or a continuous joint a whole turn from the one asked, else the one asked)
     and waypoints in the planned joints, the target pose, the other joints' values, status and
     statistics; for an invalid start or goal, why (``reason``, :func:`_end_reason`)."""
     space = ctx.space
     fixed = [j for j in robot.model.joint_names if j not in space.joint_names]
-    if q_goal is None and result.success:
+    if result.success:
         q_goal = result.path[-1]
     return {
         "scene": str(scene), "robot": robot.name, "planner": planner, "seed": seed, "status": result.status.value,
@@ -151,8 +152,13 @@ def plan_report(result, ctx, scene: Path, robot: PlacedRobot, q_goal: np.ndarray
 def _end_reason(status, ctx, q_start: np.ndarray, q_goal: np.ndarray | None) -> str | None:
     """Why the planner could not use the start or goal, "start: ..." / "goal: ...": for an
     invalid one, or for a timeout spent searching a certified escape from an end that only the
-    sphere model rejects (finer balls, ``--ball-radius``, may then plan); None otherwise."""
+    sphere model rejects (finer balls, ``--ball-radius``, may then plan); for a target no IK
+    solution reached; None otherwise."""
     from prehensile.planning import PlanStatus
+
+    if status is PlanStatus.NO_GOAL_CONFIGURATION:
+        return ("goal: IK found no configuration that puts the chain's tip at the target and is free within the "
+                "budget (the target may be out of reach, or every solution found collides)")
 
     ends = {PlanStatus.INVALID_START: [("start", q_start)], PlanStatus.INVALID_GOAL: [("goal", q_goal)],
             PlanStatus.TIMEOUT: [("start", q_start), ("goal", q_goal)]}.get(status, [])

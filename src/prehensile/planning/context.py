@@ -426,6 +426,13 @@ class PlanningContext:
         q = self.model.check_configuration(q)
         return self.model.within_limits(q) & self.spheres.is_free(q) & self.static_free(q)
 
+    def is_usable_end(self, q: np.ndarray) -> bool:
+        """Whether q (dof,) can end a path: valid (:meth:`is_valid`), or within the limits and
+        free on the exact geometry where only the conservative balls collide (a grasp around an
+        object: planners leave it by a certified escape, see ``RRTConnectSettings.escape``)."""
+        q = self.model.check_one(q)
+        return bool(self.is_valid(q) or self.model.within_limits(q) and self.static_free(q) and self.exact.is_free(q))
+
     def check_solvers(self, solvers: Sequence, who: str, q_ref: np.ndarray | None = None) -> np.ndarray | None:
         """Raise PrehensileError unless every IK solver (``ChainSolver``) places its chain's root
         where this context places the robot (``T_world_base``): its poses would otherwise be

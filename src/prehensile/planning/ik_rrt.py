@@ -40,10 +40,11 @@ from prehensile.planning.seeding import planner_rng
 from prehensile.spatial.transforms import invert
 
 # a goal sampler draws one goal configuration (dof,) or None, and what it reached (grasp
-# indices, object pose, ...), from (rng, attempts, budget): a fixed amount of IK work (its
-# unit is the sampler's), cut short only by a time budget (s); "grasp" is the index of a
+# indices, object pose, ...), from (rng, call, attempts, budget): the call's number in the
+# query (0 first), a fixed amount of IK work (its unit is the sampler's) and a time limit
+# (s); a goal must be usable (PlanningContext.is_usable_end); "grasp" is the index of a
 # single target pose reached (the planners' ``goal_index``)
-GoalSampler = Callable[[np.random.Generator, int, float], tuple[np.ndarray | None, dict]]
+GoalSampler = Callable[[np.random.Generator, int, int, float], tuple[np.ndarray | None, dict]]
 
 
 @dataclass(frozen=True)
@@ -86,15 +87,17 @@ class _Search:
         self.ctx, self.sampler, self.settings = ctx, sampler, settings
         self.search = RRTConnectSearch(ctx, q_start, settings.rrt, rng)
         self.infos: list[dict] = []
+        self.calls = 0  # goal samples drawn
         self.round_iterations = settings.first_round_iterations
         self.iterations = self.nodes = self.checks = 0
         self.search_s = self.simplify_s = self.certify_s = 0.0
 
     def step(self, rng: np.random.Generator, deadline: float) -> PlanResult | None:
         """Sample one goal, then search a round; a finished PlanResult, or None to go on."""
-        q, info = self.sampler(rng, self.settings.ik_attempts,
+        q, info = self.sampler(rng, self.calls, self.settings.ik_attempts,
                                min(self.settings.ik_budget_s, max(deadline - clock(), 0.0)))
-        if q is not None and bool(self.ctx.is_valid(q)):
+        self.calls += 1
+        if q is not None:
             self.infos.append(info)
             self.search.add_goals(q, deadline)
         remaining = deadline - clock()
@@ -162,7 +165,7 @@ def multi_eef_rrt(ctx: PlanningContext | dict[str, PlanningContext], q_start: np
     contexts = ctx if isinstance(ctx, dict) else {name: ctx for name in samplers}
     for name in samplers:  # a start only the balls reject is left to the search's certified escape
         context = contexts[name]
-        if not (context.is_valid(q_start) or context.model.within_limits(q_start) and context.exact.is_free(q_start)):
+        if not context.is_usable_end(q_start):
             return PlanResult(PlanStatus.INVALID_START, np.zeros((0, len(q_start))), PlanStats(), end_effector=name)
     searches = {name: _Search(contexts[name], q_start, sampler, settings, rng) for name, sampler in samplers.items()}
     while clock() < deadline:
@@ -193,14 +196,11 @@ def grasp_sampler(ctx: PlanningContext, solver: ChainSolver, target_poses: np.nd
     q_ref = ctx.check_solvers([solver], "grasp_sampler", q_ref)
     targets = solver.targets(target_poses)
 
-    calls = [0]
-
-    def sample(rng: np.random.Generator, attempts: int, budget: float):
+    def sample(rng: np.random.Generator, call: int, attempts: int, budget: float):
         # the first seed is q_ref itself: the solution nearest to it (q_ref when it reaches a pose)
-        seed = q_ref if calls[0] == 0 else _random_seed([solver], q_ref, rng)
-        calls[0] += 1
+        seed = q_ref if call == 0 else _random_seed([solver], q_ref, rng)
         settings = CompleteIKSettings(time_budget_s=max(budget, 1e-6), max_restarts=attempts)
-        result = solve_ik_complete(solver, targets, seed, rng, settings, is_valid=lambda q: bool(ctx.is_valid(q)))
+        result = solve_ik_complete(solver, targets, seed, rng, settings, is_valid=ctx.is_usable_end)
         return (result.q, {"grasp": result.target_index}) if result.success else (None, {})
 
     return sample
@@ -212,10 +212,10 @@ def dual_arm_sampler(ctx: PlanningContext, arms: Sequence[ChainSolver], target_p
     q_ref = ctx.check_solvers(arms, "dual_arm_sampler", q_ref)
     check_arm_pair(arms, "dual_arm_sampler")
 
-    def sample(rng: np.random.Generator, attempts: int, budget: float):
+    def sample(rng: np.random.Generator, call: int, attempts: int, budget: float):
         result = solve_ik_hybrid(arms, target_poses, free, _random_seed(arms, q_ref, rng), rng,
                                  HybridIKSettings(time_budget_s=max(budget, 1e-6), max_samples=attempts),
-                                 is_valid=lambda q: bool(ctx.is_valid(q)))
+                                 is_valid=ctx.is_usable_end)
         return (result.q, {"grasps": result.target_indices}) if result.success else (None, {})
 
     return sample
@@ -235,10 +235,10 @@ def regrasp_sampler(ctx: PlanningContext, arms: Sequence[ChainSolver], grasps: S
     pairs = separate_grasp_pairs(ctx, arms, grasps)
     reach = [self_free_reach(ctx, arm) for arm in arms]
 
-    def sample(rng: np.random.Generator, attempts: int, budget: float):
+    def sample(rng: np.random.Generator, call: int, attempts: int, budget: float):
         result, T_world_object = solve_regrasp_ik(arms, grasps, region, free, q_ref, rng,
                                                   time_budget_s=max(budget, 1e-6), pairs=pairs, reach=reach,
-                                                  is_valid=lambda q: bool(ctx.is_valid(q)), max_batches=attempts)
+                                                  is_valid=ctx.is_usable_end, max_batches=attempts)
         if not result.success:
             return None, {}
         return result.q, {"grasps": result.target_indices, "T_world_object": T_world_object}

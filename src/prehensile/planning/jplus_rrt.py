@@ -36,7 +36,7 @@ from prehensile.errors import PrehensileError
 from prehensile.ik import kernels as ik_kernels
 from prehensile.ik.hand_pair import HandPair
 from prehensile.ik.jacobian import ChainSolver, JacobianIKSettings
-from prehensile.planning.certify import certified_escape
+from prehensile.planning.certify import certified_escape, certify_path
 from prehensile.planning.context import PlanningContext
 from prehensile.planning.finish import finish_path
 from prehensile.planning.result import PlanResult, PlanStats, PlanStatus
@@ -63,6 +63,9 @@ class JPlusRRTSettings:
             along a short straight motion certified on the exact geometry (as in
             :class:`~prehensile.planning.rrt_connect.RRTConnectSettings`), searched until the
             budget runs out (TIMEOUT if none is found); the start itself is then not extended.
+        exact_approach: within this distance (m) of a goal position a Jacobian step that the
+            balls block is certified on the exact geometry instead (0: never): the
+            conservative balls would keep a grasp in contact range of the object out of reach.
     """
 
     time_budget_s: float = 5.0
@@ -78,14 +81,15 @@ class JPlusRRTSettings:
     shortcut_iterations: int = 100
     certify: bool = True
     escape: bool = True
+    exact_approach: float = 0.05
 
     def __post_init__(self) -> None:
         positive = ("time_budget_s", "step", "max_step_position", "max_step_rotation", "position_tolerance",
                     "rotation_tolerance", "rotation_weight", "max_goal_steps")
         if not all(getattr(self, name) > 0 for name in positive) or not 0 <= self.goal_probability <= 1 \
-                or self.max_nodes < 2 or self.shortcut_iterations < 0:
+                or self.max_nodes < 2 or self.shortcut_iterations < 0 or not self.exact_approach >= 0:
             raise PrehensileError(f"JPlusRRTSettings: need {', '.join(positive)} > 0, goal_probability in [0, 1], "
-                                  f"max_nodes >= 2 and shortcut_iterations >= 0; got {self}")
+                                  f"max_nodes >= 2, shortcut_iterations >= 0 and exact_approach >= 0; got {self}")
 
 
 class _Tree:
@@ -311,7 +315,8 @@ def _extend_randomly(ctx: PlanningContext, tree: _Tree, goals, step: float, boun
 def _extend_to_goal(ctx: PlanningContext, tree: _Tree, node: int, g: int, goals, s: JPlusRRTSettings) -> int:
     """ExtendToGoal (Alg. 14): Jacobian steps from ``node`` toward goal g, each new
     configuration a tree node; the node reaching it, or -1 when a step is blocked (collision,
-    joint limit, or an error that stops shrinking) or the steps run out."""
+    joint limit, or an error that stops shrinking) or the steps run out. Within
+    ``s.exact_approach`` of the goal a step the balls block may pass on the exact geometry."""
     last = np.inf
     for _ in range(s.max_goal_steps):
         q = tree.q[node]
@@ -319,13 +324,19 @@ def _extend_to_goal(ctx: PlanningContext, tree: _Tree, node: int, g: int, goals,
         if pos_err <= s.position_tolerance and rot_err <= s.rotation_tolerance:
             return node
         error = pos_err + s.rotation_weight * rot_err
-        if q_new is None or error >= last or not ctx.check_motion(q, q_new):
+        if q_new is None or error >= last or not _step_free(ctx, q, q_new, pos_err <= s.exact_approach):
             tree.mark(node, g)
             return -1
         last = error
         node = tree.add(q_new, node, goals.tools(q_new))
         tree.mark(node, g)
     return -1
+
+
+def _step_free(ctx: PlanningContext, q: np.ndarray, q_new: np.ndarray, exact: bool) -> bool:
+    """The motion q -> q_new (dof,) is free for the balls, or (if ``exact``) certified on the
+    exact geometry where they block it."""
+    return bool(ctx.check_motion(q, q_new)) or exact and certify_path(ctx, np.stack((q, q_new))).ok
 
 
 def _chain_solver(ctx: PlanningContext, chain: str | None, T_tip_tcp: np.ndarray | None) -> ChainSolver:
