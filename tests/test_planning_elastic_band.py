@@ -161,10 +161,15 @@ def test_a_colliding_input_path_is_refused(panda):
         elastic_band(ctx, np.stack([Q_START, middle, Q_GOAL]))
 
 
-def test_bad_settings_and_path():
+def test_bad_settings_and_path(panda):
     with pytest.raises(PrehensileError, match="d_min"):
         ElasticBandSettings(d_min=0.0)
     with pytest.raises(PrehensileError, match="k_int"):
         ElasticBandSettings(k_int=-1.0)
-    with pytest.raises(PrehensileError, match="path"):
-        elastic_band(None, np.zeros((0, 8)))
+    ctx = _context(panda, [])
+    with pytest.raises(PrehensileError, match=r"elastic_band: path must have shape \(N >= 1, 8\)"):
+        elastic_band(ctx, np.zeros((0, 8)))
+    moved = np.stack([Q_START, Q_START])
+    moved[1, 7] = 0.03  # a finger joint the context does not plan
+    with pytest.raises(PrehensileError, match=r"elastic_band: the path moves joints .*\(panda_finger_joint1; planned"):
+        elastic_band(ctx, moved)

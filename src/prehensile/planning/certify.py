@@ -353,6 +353,33 @@ def certify_path(ctx: PlanningContext, path: np.ndarray, resolution: float | Non
     return ctx.certifier.certify(path, res)
 
 
+def check_valid_path(ctx: PlanningContext, path: np.ndarray, who: str) -> np.ndarray:
+    """``path`` (N >= 1, dof) as float64 if it is a valid input path for ``ctx``; else a
+    PrehensileError naming ``who`` and what is wrong.
+
+    Valid: finite, the joints ``ctx`` does not plan constant, and every edge free on the
+    sphere model, or (where the balls reject it: an end in contact range) certified on the
+    exact geometry (:func:`certify_path`).
+    """
+    path = ctx.model.check_configuration(path, f"{who}: path")
+    if path.ndim != 2 or len(path) < 1:
+        raise PrehensileError(f"{who}: path must have shape (N >= 1, {ctx.model.dof}), got {path.shape}")
+    fixed = ctx.space.fixed
+    moved = fixed[np.any(np.abs(path[:, fixed] - path[0, fixed]) > 1e-9, axis=0)]
+    if len(moved):
+        raise PrehensileError(f"{who}: the path moves joints the context does not plan "
+                              f"({', '.join(ctx.model.joint_names[i] for i in moved)}; planned: "
+                              f"{', '.join(ctx.space.joint_names)})")
+    for i in np.flatnonzero(~ctx.check_motions(path[:-1], path[1:])) if len(path) > 1 else ():
+        report = certify_path(ctx, path[i:i + 2])
+        if not report.ok:
+            why = (f"links {' and '.join(report.colliding_links)} collide" if report.colliding_links
+                   else "it leaves the joint limits")
+            raise PrehensileError(f"{who}: the input path must be valid; its edge {i} (waypoint {i} to {i + 1}) "
+                                  f"is not: {why}")
+    return path
+
+
 def certified_escape(ctx: PlanningContext, q: np.ndarray, toward: np.ndarray, rng: np.random.Generator,
                      clearance: float, reach: float = 0.3, attempts: int | None = ESCAPE_ATTEMPTS,
                      samples: int = 32, deadline: float = np.inf) -> np.ndarray | None:

@@ -47,7 +47,7 @@ import numpy as np
 
 from prehensile.errors import PrehensileError
 from prehensile.kinematics import forward_kinematics, frame_jacobian
-from prehensile.planning.certify import certify_path
+from prehensile.planning.certify import check_valid_path
 from prehensile.spatial import make_pose
 
 log = logging.getLogger(__name__)
@@ -142,18 +142,6 @@ def _near_obstacles(ctx, path: np.ndarray, d_min: float) -> np.ndarray:
     return ctx.spheres.clearance(path, d_min, self_pairs=False) < d_min
 
 
-def _check_input(ctx, path: np.ndarray) -> None:
-    """Raise unless every edge of path (N, dof) is free: on the sphere model, or where the balls
-    reject it (an endpoint in contact range), on the exact geometry (:func:`certify_path`)."""
-    for i in np.flatnonzero(~ctx.check_motions(path[:-1], path[1:])) if len(path) > 1 else ():
-        report = certify_path(ctx, path[i:i + 2])
-        if not report.ok:
-            why = (f"links {' and '.join(report.colliding_links)} collide" if report.colliding_links
-                   else "it leaves the joint limits")
-            raise PrehensileError(f"elastic_band: the input path must be valid; its edge {i} (waypoint {i} to "
-                                  f"{i + 1}) is not: {why}")
-
-
 def elastic_band(ctx, path: np.ndarray, settings: ElasticBandSettings = ElasticBandSettings()) -> np.ndarray:
     """Smooth a valid path and push it away from obstacles with an elastic band.
 
@@ -169,14 +157,9 @@ def elastic_band(ctx, path: np.ndarray, settings: ElasticBandSettings = ElasticB
         Joints outside ``ctx.space`` keep their values.
 
     Raises:
-        PrehensileError: path is not a finite (N, dof) array, or one of its edges collides or
-            leaves the joint limits.
+        PrehensileError: path is not a valid path (:func:`~prehensile.planning.certify.check_valid_path`).
     """
-    path = np.asarray(path, dtype=float)
-    if path.ndim != 2 or len(path) == 0 or not np.all(np.isfinite(path)):
-        raise PrehensileError(f"elastic_band: path must be a finite (N, dof) array, got shape {path.shape}")
-    path = ctx.model.check_configuration(path).copy()
-    _check_input(ctx, path)
+    path = check_valid_path(ctx, path, "elastic_band").copy()
     if settings.max_spacing is not None:
         path = _subdivide(ctx, path, settings.max_spacing)
     space = ctx.space

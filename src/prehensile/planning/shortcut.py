@@ -25,6 +25,7 @@ from numba import njit
 
 from prehensile.clock import clock
 from prehensile.errors import PrehensileError
+from prehensile.planning.certify import check_valid_path
 from prehensile.planning.context import PlanningContext
 from prehensile.planning.kernels import FREE, NO_LIMIT, assign, distance, motion_free, rng_state, uniform
 from prehensile.planning.seeding import planner_rng
@@ -174,9 +175,9 @@ def shortcut(ctx: PlanningContext, path: np.ndarray, rng: np.random.Generator | 
 
     Args:
         ctx: the planning context (sphere model, metric).
-        path: (N, dof) full configurations; the joints not planned must stay constant.
+        path: (N, dof) full configurations, a valid path (:func:`~prehensile.planning.certify.check_valid_path`).
         rng: random source or seed (:func:`~prehensile.planning.seeding.planner_rng`; the same seed gives
-            the same result).
+            the same result, unless ``time_budget_s`` cuts the attempts short).
         iterations: random shortcut attempts.
         time_budget_s: stop the random attempts after this time (s).
         resolution: edge-check resolution (m); default ``ctx.resolution``.
@@ -188,15 +189,10 @@ def shortcut(ctx: PlanningContext, path: np.ndarray, rng: np.random.Generator | 
     Returns:
         (M, dof) waypoints, M <= N + iterations, first and last equal to the input's.
     """
-    path = ctx.model.check_configuration(path, "path")
-    if path.ndim != 2 or len(path) < 1:
-        raise PrehensileError(f"shortcut: path must have shape (N, {ctx.model.dof}), got {path.shape}")
     if not (int(iterations) == iterations and iterations >= 0 and time_budget_s >= 0):
         raise PrehensileError(f"shortcut: iterations must be a count >= 0 and time_budget_s >= 0 (s), got "
                               f"{iterations} and {time_budget_s}")
-    fixed = ctx.space.fixed
-    if len(fixed) and np.any(np.abs(path[:, fixed] - path[0, fixed]) > 1e-9):
-        raise PrehensileError("shortcut: the path moves joints that are not planned in this context")
+    path = check_valid_path(ctx, path, "shortcut")
     if len(path) < 3:
         return path.copy()
     res = ctx.resolution if resolution is None else float(resolution)
