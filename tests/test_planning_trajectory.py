@@ -42,7 +42,8 @@ def test_panda_path_respects_limits_rests_at_ends_and_follows_the_polyline():
     assert np.all(np.abs(traj.qd) <= velocity * (1 + TOL))
     assert np.all(np.abs(traj.qdd) <= acceleration * (1 + TOL))
     assert np.array_equal(traj.q[0], path[0]) and np.array_equal(traj.q[-1], path[-1])
-    assert np.all(traj.qd[0] == 0) and np.all(traj.qd[-1] == 0)
+    assert np.all(traj.qd[0] == 0) and np.all(traj.qd[-1] == 0) and np.all(traj.qdd[-1] == 0)
+    assert np.all(traj.sample(traj.duration + 5.0)[2] == 0)  # held at rest after the end
     assert np.max(_distance_to_polyline(traj.q, path)) < 1e-9
     # every waypoint is visited, at rest
     for waypoint in path[1:-1]:
@@ -126,6 +127,14 @@ def test_blending_only_when_checked():
     assert np.array_equal(rejected.q, stops.q)
 
 
+def test_blending_is_kept_only_when_it_is_faster():
+    """A path that turns back on itself: the spline overshoots and takes longer than stopping."""
+    reversal = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 0.01]])
+    stops = time_parameterize(reversal, 1.0, 2.0)
+    spline = time_parameterize(reversal, 1.0, 2.0, blend_check=lambda a, b: True)
+    assert np.array_equal(spline.q, stops.q)
+
+
 def test_blended_wiggly_paths_keep_the_limits_at_every_sample():
     # dense, wiggling paths like an elastic band's: the spline's curvature peaks at its knots
     rng = np.random.default_rng(0)
@@ -160,3 +169,11 @@ def test_model_limits():
     unlimited = replace(model, velocity_limit=np.full(model.dof, np.inf))
     assert np.all(model_limits(unlimited, acceleration=5.0)[0] == DEFAULT_VELOCITY)
     assert np.all(model_limits(unlimited, acceleration=5.0)[1] == 5.0)
+    assert model_limits(model, [0, 2], acceleration=[1.0, 2.0])[1].tolist() == [1.0, 2.0]
+    for bad, message in [({"indices": [0, 8]}, "indices must be variable indices in \\[0, 8\\)"),
+                         ({"indices": ["panda_joint1"]}, "indices must be"),
+                         ({"acceleration": [1.0, 2.0]}, "acceleration must be one positive number or 8"),
+                         ({"acceleration": -1.0}, "acceleration must be"),
+                         ({"acceleration": float("nan")}, "acceleration must be")]:
+        with pytest.raises(PrehensileError, match=message):
+            model_limits(model, **bad)

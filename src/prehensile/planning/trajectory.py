@@ -56,7 +56,7 @@ class Trajectory:
         t: (M,) sample times (s), from 0 to the duration; the last step may be shorter.
         q: (M, n) positions (rad or m).
         qd: (M, n) velocities (rad/s or m/s); zero at both ends.
-        qdd: (M, n) accelerations (rad/s^2 or m/s^2).
+        qdd: (M, n) accelerations (rad/s^2 or m/s^2); zero at the last sample (at rest).
         joint_names: names of the n joints, or () when unknown.
     """
 
@@ -120,16 +120,26 @@ def model_limits(model: RobotModel, indices: np.ndarray | None = None,
 
     Args:
         indices: (n,) variable indices (e.g. ``ConfigurationSpace.indices``); all if None.
-        acceleration: acceleration limit(s) (rad/s^2 or m/s^2), scalar or (n,).
+        acceleration: acceleration limit(s) (rad/s^2 or m/s^2, positive), scalar or (n,).
 
     Returns:
         (velocity (n,), acceleration (n,)); velocities the model leaves unlimited (infinite
         or <= 0) get :data:`DEFAULT_VELOCITY`.
     """
-    indices = np.arange(model.dof) if indices is None else np.asarray(indices, dtype=np.int64)
+    if indices is None:
+        indices = np.arange(model.dof)
+    indices = np.asarray(indices)
+    if indices.ndim != 1 or indices.dtype.kind not in "iu" or np.any((indices < 0) | (indices >= model.dof)):
+        raise PrehensileError(f"model_limits: indices must be variable indices in [0, {model.dof}) of robot "
+                              f"'{model.name}' (joints: {', '.join(model.joint_names)}), got {indices.tolist()}")
     velocity = np.asarray(model.velocity_limit, dtype=float)[indices]
     velocity = np.where(np.isfinite(velocity) & (velocity > 0), velocity, DEFAULT_VELOCITY)
-    return velocity, np.broadcast_to(np.asarray(acceleration, dtype=float), velocity.shape).copy()
+    acceleration = np.asarray(acceleration, dtype=float)
+    if acceleration.ndim > 1 or acceleration.size not in (1, len(indices)) or not np.all(acceleration > 0) \
+            or not np.all(np.isfinite(acceleration)):
+        raise PrehensileError(f"model_limits: acceleration must be one positive number or {len(indices)} "
+                              f"(rad/s^2 or m/s^2), got {acceleration.tolist()}")
+    return velocity, np.broadcast_to(acceleration, velocity.shape).copy()
 
 
 class _Line(AbstractGeometricPath):
@@ -239,9 +249,10 @@ def time_parameterize(path: np.ndarray, velocity_limits: float | np.ndarray, acc
     By default the motion follows the polyline exactly, stopping at each corner (collinear
     waypoints and repeats are dropped first). With ``blend_check`` the corners are rounded by
     the natural cubic spline through the waypoints, used only if ``blend_check(qa, qb)``
-    accepts every chord between spline samples ``blend_step`` apart (e.g.
-    ``PlanningContext.check_motion`` on active vectors, which must also check joint limits,
-    since the spline may overshoot); otherwise the polyline is used. Limits are enforced at
+    accepts every chord between spline samples ``blend_step`` apart and the spline is the
+    faster motion; otherwise the polyline is used (a warning is logged if the check failed).
+    The check must also check joint limits, since the spline may overshoot: for a planning
+    context, ``lambda a, b: ctx.check_motion(ctx.space.full(a), ctx.space.full(b))``. Limits are enforced at
     the TOPP-RA gridpoints (the spline's knots among them) and checked again between them and
     at every returned sample; any residual excess (numerical, or between gridpoints) is
     removed by slowing the whole motion uniformly, so every sample meets the limits (to a
@@ -284,18 +295,16 @@ def time_parameterize(path: np.ndarray, velocity_limits: float | np.ndarray, acc
     if len(corners) == 1:
         zero = np.zeros((1, n))
         return Trajectory(np.zeros(1), corners, zero, zero, tuple(joint_names))
+    pieces = [_Line(a, b) for a, b in zip(corners[:-1], corners[1:])]
+    ss, sd, piece_of = _knots(pieces, None, velocity, acceleration)
     blended = _spline(corners, blend_check, blend_step) if blend_check is not None and len(corners) > 2 else None
     if blend_check is not None and len(corners) > 2 and blended is None:
-        log.info("time_parameterize: the blended path failed the check; stopping at the %d corners", len(corners) - 2)
-    pieces = [blended[0]] if blended is not None else [_Line(a, b) for a, b in zip(corners[:-1], corners[1:])]
-    ss, sd, piece_of = [], [], []
-    for p, piece in enumerate(pieces):
-        s, v = (_toppra_knots(piece, velocity, acceleration, blended[1]) if blended is not None
-                else _line_knots(piece, velocity, acceleration))
-        ss.append(np.stack([s[:-1], s[1:]], axis=1))
-        sd.append(np.stack([v[:-1], v[1:]], axis=1))
-        piece_of.append(np.full(len(s) - 1, p))
-    ss, sd, piece_of = np.concatenate(ss), np.concatenate(sd), np.concatenate(piece_of)
+        log.warning("time_parameterize: the blended path failed the check; stopping at the %d corners",
+                    len(corners) - 2)
+    if blended is not None:
+        knots = _knots([blended[0]], blended[1], velocity, acceleration)
+        if _duration(*knots[:2]) < _duration(ss, sd):  # else stopping at the corners is faster
+            pieces, (ss, sd, piece_of) = [blended[0]], knots
     durations = 2.0 * (ss[:, 1] - ss[:, 0]) / (sd[:, 0] + sd[:, 1])
     starts = np.concatenate([[0.0], np.cumsum(durations)[:-1]])
     # residual limit excess, measured at five points of every interval, then on the samples
@@ -309,8 +318,27 @@ def time_parameterize(path: np.ndarray, velocity_limits: float | np.ndarray, acc
         if more <= 1.0 + 1e-9:
             break
         scale *= max(more, 1.001)  # the new samples lie elsewhere: at least 0.1 % per round, so this ends
-    q[0], q[-1], qd[0], qd[-1] = corners[0], corners[-1], 0.0, 0.0
+    q[0], q[-1], qd[0], qd[-1], qdd[-1] = corners[0], corners[-1], 0.0, 0.0, 0.0
     return Trajectory(t, q, qd, qdd, tuple(joint_names))
+
+
+def _knots(pieces: list, grid: np.ndarray | None, velocity: np.ndarray, acceleration: np.ndarray):
+    """Rest-to-rest profiles of the pieces (straight lines if ``grid`` is None, else one spline
+    with its TOPP-RA gridpoints): per interval its path coordinates ss (K, 2), path speeds
+    sd (K, 2) at both ends (constant path acceleration between) and piece index (K,)."""
+    ss, sd, piece_of = [], [], []
+    for p, piece in enumerate(pieces):
+        s, v = (_line_knots(piece, velocity, acceleration) if grid is None
+                else _toppra_knots(piece, velocity, acceleration, grid))
+        ss.append(np.stack([s[:-1], s[1:]], axis=1))
+        sd.append(np.stack([v[:-1], v[1:]], axis=1))
+        piece_of.append(np.full(len(s) - 1, p))
+    return np.concatenate(ss), np.concatenate(sd), np.concatenate(piece_of)
+
+
+def _duration(ss: np.ndarray, sd: np.ndarray) -> float:
+    """Duration (s) of the intervals of :func:`_knots`."""
+    return float(np.sum(2.0 * (ss[:, 1] - ss[:, 0]) / (sd[:, 0] + sd[:, 1])))
 
 
 def _excess(qd: np.ndarray, qdd: np.ndarray, velocity: np.ndarray, acceleration: np.ndarray) -> float:
