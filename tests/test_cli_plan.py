@@ -54,6 +54,7 @@ def test_plan_bundled_scene(demo, tmp_path):
     assert path["path_length_m"] > 0 and path["stats"]["certify_time_s"] >= 0
     trajectory = json.loads((tmp_path / "trajectory.json").read_text())
     assert trajectory["joint_names"] == ARM and trajectory["duration"] > 0
+    assert trajectory["fixed_joints"] == path["fixed_joints"]
     np.testing.assert_allclose(trajectory["q"][0], waypoints[0], atol=1e-6)
     np.testing.assert_allclose(trajectory["q"][-1], waypoints[-1], atol=1e-6)
     assert (tmp_path / "plan.png").stat().st_size > 10_000
@@ -147,3 +148,13 @@ def test_bad_scene_goal_names_the_file(tmp_path):
     scene.write_text("robots:\n  - {robot: panda, goal: {elbow: 1.0}}\n")
     with pytest.raises(SceneError, match=r"bad.yaml: robots\[0\].goal: robot 'panda' has no joint 'elbow'"):
         robot_goals(scene, load_scene(scene))
+    scene.write_text("robots:\n  - {robot: panda, goal: {}}\n")
+    with pytest.raises(SceneError, match=r"bad.yaml: robots\[0\].goal: empty; name the planned joints"):
+        robot_goals(scene, load_scene(scene))
+
+
+def test_a_scene_without_robots_says_so(tmp_path):
+    scene = tmp_path / "empty.yaml"
+    scene.write_text("obstacles: []\n")
+    result = _plan(scene, "--out", tmp_path / "out")
+    assert result.exit_code == 2 and "empty.yaml: the scene has no robots" in result.output

@@ -147,6 +147,10 @@ def test_solvers_placed_elsewhere_than_the_robot_are_errors(panda_scene):
         dual_arm_sampler(ctx, [solver, solver], [goals, goals], q0)
     with pytest.raises(PrehensileError, match=r"grasp_sampler: q_ref: expected shape \(\.\.\., 8\)"):
         grasp_sampler(ctx, solver, goals, q0[:7])
+    fingers = ChainSolver(ctx.model, "hand")
+    with pytest.raises(PrehensileError, match="grasp_sampler: chain 'hand' moves panda_finger_joint1, which the "
+                                              "context does not plan"):
+        grasp_sampler(ctx, fingers, goals, q0)
 
 
 def test_a_sampler_takes_q_ref_as_a_list(panda_scene):

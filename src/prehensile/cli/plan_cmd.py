@@ -11,8 +11,8 @@ and objects plus the other robots at their configurations.
 
 Writes to ``--out``: ``path.json`` (status, joint names, waypoints, statistics;
 ``path_length_m`` is the workspace-weighted length, a bound on how far any point of the robot
-travels), on success ``trajectory.json`` (time-optimal, rest to rest at each waypoint, with
-the limits used) and always ``plan.png`` (the robot at the start, a few waypoints and the
+travels), on success ``trajectory.json`` (time-optimal, rest to rest at each waypoint, with the
+limits used and the values of the joints not planned) and always ``plan.png`` (the robot at the start, a few waypoints and the
 goal). A failed plan removes the ``trajectory.json`` of an earlier one. Exit codes: 0 path
 found, 1 no path (the status says why, e.g. ``invalid_goal`` for a goal in collision), 2 bad
 input.
@@ -52,13 +52,15 @@ def scene_path(scene: str) -> Path:
 def choose_robot(scene: Scene, name: str | None, goals: dict) -> PlacedRobot:
     """The robot named ``name``; by default the only robot, or the only one with a goal."""
     names = [r.name for r in scene.robots]
+    if not names:
+        raise SceneError(f"{scene.source}: the scene has no robots; add one under 'robots:' (see docs/scenes.md)")
     if name is not None:
         if name not in names:
-            raise SceneError(f"{scene.source}: no robot '{name}'; robots: {', '.join(names) or '(none)'}")
+            raise SceneError(f"{scene.source}: no robot '{name}'; robots: {', '.join(names)}")
         return scene.robots[names.index(name)]
     candidates = [r for r in scene.robots if r.name in goals] if len(scene.robots) > 1 else list(scene.robots)
     if len(candidates) != 1:
-        raise SceneError(f"{scene.source}: give --robot; robots: {', '.join(names) or '(none)'}")
+        raise SceneError(f"{scene.source}: give --robot; robots: {', '.join(names)}")
     return candidates[0]
 
 
@@ -194,8 +196,9 @@ def write_outputs(result, context, scene: Scene, robot: PlacedRobot, report: dic
         velocity, acceleration = model_limits(robot.model, space.indices)
         trajectory = time_parameterize(space.active(result.path), velocity, acceleration,
                                        joint_names=space.joint_names)
-        limits = {"velocity_limits": velocity.tolist(), "acceleration_limits": acceleration.tolist()}
-        written.append(atomic_write_json(out / "trajectory.json", {**trajectory.to_dict(), **limits}))
+        extra = {"velocity_limits": velocity.tolist(), "acceleration_limits": acceleration.tolist(),
+                 "fixed_joints": report["fixed_joints"]}  # the robot's other joints, held throughout
+        written.append(atomic_write_json(out / "trajectory.json", {**trajectory.to_dict(), **extra}))
         inner = result.path[1:-1]
         picks = inner[np.linspace(0, len(inner) - 1, min(PICTURE_WAYPOINTS, len(inner))).round().astype(int)]
         shown = np.concatenate([result.path[:1], picks, result.path[-1:]])

@@ -435,10 +435,16 @@ class PlanningContext:
 
     def check_solvers(self, solvers: Sequence, who: str, q_ref: np.ndarray | None = None) -> np.ndarray | None:
         """Raise PrehensileError unless every IK solver (``ChainSolver``) places its chain's root
-        where this context places the robot (``T_world_base``): its poses would otherwise be
-        reached in the wrong place. ``who`` names the caller in the message. Returns ``q_ref``
-        checked as one configuration (dof,) (None if not given)."""
+        where this context places the robot (``T_world_base``; its poses would otherwise be
+        reached in the wrong place) and moves only joints the context plans (its solutions
+        would otherwise be goals the planner refuses). ``who`` names the caller in the message.
+        Returns ``q_ref`` checked as one configuration (dof,) (None if not given)."""
+        planned = set(self.space.indices.tolist())
         for solver in solvers:
+            unplanned = [self.model.joint_names[i] for i in solver.var_q if i not in planned]
+            if unplanned:
+                raise PrehensileError(f"{who}: chain '{solver.chain.name}' moves {', '.join(unplanned)}, which the "
+                                      f"context does not plan (planned: {', '.join(self.space.joint_names)})")
             if not np.allclose(solver.T_world_root, self.T_world_base, atol=1e-9):
                 raise PrehensileError(f"{who}: the solver of chain '{solver.chain.name}' has T_world_root (top rows) "
                                       f"{np.round(solver.T_world_root[:3], 4).tolist()}, not the context's "

@@ -107,8 +107,8 @@ def robot_goals(path: str | os.PathLike, scene: Scene) -> dict[str, dict[str, fl
     :func:`save_scene` does not write them. ``scene`` is :func:`load_scene` of the same file.
 
     Raises:
-        SceneError: a goal that is not a mapping, names a joint the robot does not have, or
-            holds a value outside the joint's limits.
+        SceneError: a goal that is not a mapping or is empty, names a joint the robot does not
+            have, or holds a value outside the joint's limits.
     """
     data = yaml.safe_load(Path(path).read_text(encoding="utf-8")) or {}
     goals = {}
@@ -116,6 +116,9 @@ def robot_goals(path: str | os.PathLike, scene: Scene) -> dict[str, dict[str, fl
         if isinstance(entry, Mapping) and entry.get("goal") is not None:
             where = f"{path}: robots[{i}]{_label(entry)}.goal"
             q = _read_joints(entry["goal"], robot.model, where)
+            if not entry["goal"]:
+                raise SceneError(f"{where}: empty; name the planned joints and their goal values (rad or m), "
+                                 f"joints: {', '.join(robot.model.joint_names)}")
             goals[robot.name] = {joint: float(q[robot.model.joint_index(joint)]) for joint in entry["goal"]}
     return goals
 
