@@ -133,6 +133,8 @@ class ConfigurationSpace:
     def sampling_bounds(self, center: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(lower, upper) (n,) of uniform samples: the limits, and for a continuous joint the
         turn ``center +- pi`` around the active vector ``center`` (n,)."""
+        if not self.continuous.any():
+            return self.lower, self.upper
         center = np.asarray(center, dtype=float)
         return (np.where(self.continuous, center - np.pi, self.lower),
                 np.where(self.continuous, center + np.pi, self.upper))
@@ -144,6 +146,8 @@ class ConfigurationSpace:
         each continuous joint the same goal with that joint one turn the other way (the longer
         way, when the shorter one is blocked). Returns (goals (m, n), row of qa of each (m,)).
         """
+        if not self.continuous.any():
+            return qa, np.arange(len(qa))
         near = self.nearest_turn(qa, ref)
         out, rows = [near], [np.arange(len(near))]
         for j in np.flatnonzero(self.continuous):
