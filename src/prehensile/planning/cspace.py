@@ -64,9 +64,9 @@ class ConfigurationSpace:
 
     Planners work on "active" vectors (n,) of the planned joints; :meth:`full` expands them
     into model configurations (dof,) with the other joints at ``q_ref``. A continuous joint
-    (no limits) is planned on the real line, unwrapped: paths run the shorter way round when
-    their goals come from :meth:`nearest_turn`, and samples are drawn from one turn around
-    the start (:meth:`sampling_bounds`).
+    (no limits) is planned on the real line, unwrapped: a goal becomes the goals of
+    :meth:`goal_turns` (either way round), and samples are drawn from one turn around the
+    start (:meth:`sampling_bounds`).
 
     Args:
         model: the robot.

@@ -587,7 +587,8 @@ def rrt_connect(ctx: PlanningContext, q_start: np.ndarray, q_goal: np.ndarray,
     Returns:
         :class:`PlanResult`: on SUCCESS ``path`` (N, dof) runs from exactly q_start to exactly
         the reached goal (``goal_index`` its row; a continuous joint ends at the goal's angle
-        plus the whole turns that put it within pi of the start), ``info`` has ``length`` (m, weighted),
+        plus whole turns, the shorter way round unless that is blocked), ``info`` has
+        ``length`` (m, weighted),
         ``attempts``, ``escapes`` (certified escape edges among the roots), ``refined``
         (links planned on covering balls, see ``settings.certify_retries``) and ``certify``
         (:class:`CertifyReport`, if certified). INVALID_START /
