@@ -14,6 +14,7 @@ from prehensile.collision.acm import rigid_bodies
 from prehensile.collision.sphere_checker import SphereChecker
 from prehensile.collision.sphere_fit import geometry_triangles
 from prehensile.collision.world import Obstacle
+from prehensile.errors import PrehensileError
 from prehensile.collision.spheres import (
     SphereModel, generate_sphere_model, pad_sphere_model, spheres_from_urdf,
 )
@@ -264,3 +265,22 @@ def test_a_table_mesh_checks_like_the_box_it_is():
     free = as_box.is_free(q)
     assert 20 < free.sum() < len(q) - 20
     assert np.array_equal(as_mesh.is_free(q), free)
+
+
+def test_checker_inputs_a_robot_without_joints_and_contacts_of_the_base():
+    """A bad base pose is an error; a robot with no joints is checked like any other; the
+    base's balls in an obstacle are reported as the base's world contact."""
+    model = _primitive_robot()
+    brick = Obstacle("brick", Box((0.1, 0.1, 0.1)), make_pose(position=[0.15, 0.1, 0.02]))  # in the base plate
+    nan_base = make_pose(position=[0.0, 0.0, np.nan])
+    with pytest.raises(PrehensileError, match="SphereChecker: T_world_base: contains NaN"):
+        SphereChecker(model, [brick], T_world_base=nan_base)
+    with pytest.raises(PrehensileError, match="SphereChecker: T_world_base: .*not a rotation"):
+        SphereChecker(model, [brick], T_world_base=np.diag([10.0, 10.0, 10.0, 1.0]))
+    checker = SphereChecker(model, [brick])
+    assert checker.static_hit and ("base", "world") in checker.ball_contacts(np.zeros(2))
+    rigid = build_model("rigid", "test", [LinkSpec("base", collisions=[Geometry(Box((0.2, 0.2, 0.2)))])], [])
+    for world, free in (([], True), ([brick], False)):
+        checker = SphereChecker(rigid, world)
+        assert checker.is_free(np.zeros(0)) == free and checker.is_free(np.zeros((3, 0))).tolist() == [free] * 3
+        assert (checker.clearance(np.zeros(0)) > 0) == free

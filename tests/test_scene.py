@@ -199,3 +199,17 @@ def test_the_documented_example_scene_loads_and_is_free(tmp_path):
 def test_unknown_check_method():
     with pytest.raises(SceneError, match="valid: exact, spheres"):
         check_scene(load_scene(DATA / "free.yaml"), "voxels")
+
+
+@pytest.mark.parametrize("height, free", [(0.741, True), (0.70, False)])
+def test_spheres_judge_a_base_on_a_table_by_its_geometry(tmp_path, height, free):
+    """The base's balls reach 5 cm below it: a base 1 mm above the table top is free, one
+    sunk 4 cm into it collides (and the contact names the base)."""
+    pose = {"panda_joint1": -0.9, "panda_joint2": 0.2, "panda_joint4": -2.0, "panda_joint6": 2.2,
+            "panda_joint7": 0.785, "panda_finger_joint1": 0.02}
+    scene = {"robots": [{"robot": "panda", "pose": {"position": [0.0, 0.0, height]}, "joints": pose}],
+             "obstacles": [{"name": "table", "pose": {"position": [0.3, 0.0, 0.72]},
+                            "shape": {"type": "box", "size": [1.0, 0.8, 0.04]}}]}
+    (robot,) = check_scene(load_scene(_write(tmp_path, scene)), "spheres").robots
+    assert robot.free == free
+    assert free or ("panda_link0", "world") in [(c.link, c.other) for c in robot.contacts]

@@ -15,7 +15,7 @@ from weakref import WeakKeyDictionary
 import coal
 import numpy as np
 
-from prehensile.collision.acm import allowed_collision_matrix
+from prehensile.collision.acm import allowed_collision_matrix, rigid_bodies
 from prehensile.collision.sphere_fit import box_cover, geometry_triangles
 from prehensile.collision.world import Obstacle, check_obstacles
 from prehensile.errors import PrehensileError
@@ -346,6 +346,14 @@ class ExactChecker:
             if hit:
                 out.append((link, other, depth))
         return out
+
+    def root_contacts(self, q: np.ndarray) -> list[tuple[str, str, float]]:
+        """World contacts (link, obstacle, depth m) of the links rigid with the robot's root, at
+        any configuration q (dof,): they never move, so these hold in every configuration."""
+        body = rigid_bodies(self.model)
+        root_body = body[np.flatnonzero(self.model.link_parent < 0)[0]]
+        root = {self.model.link_names[i] for i in np.flatnonzero(body == root_body)}
+        return [c for c in self.collisions(q, "world") if c[0] in root]
 
     def _distance(self, a, b, which: int = _EXACT) -> float:
         """Distance (m) of the placed geometries a and b: exact, or of their convex bounds (``_BOUND``)."""

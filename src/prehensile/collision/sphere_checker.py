@@ -27,6 +27,7 @@ from prehensile.errors import PrehensileError
 from prehensile.kinematics.forward import forward_kinematics
 from prehensile.model.geometry import Box, Capsule, Cylinder, Geometry, Mesh, Sphere
 from prehensile.model.robot_model import RobotModel
+from prehensile.spatial.transforms import check_pose
 
 
 def obstacle_arrays(obstacles: Sequence[Obstacle], mesh_boxes: int = 32) -> dict[str, np.ndarray]:
@@ -189,7 +190,10 @@ class SphereChecker:
         if tuple(self.spheres.link_names) != tuple(model.link_names):
             raise PrehensileError("SphereChecker: the sphere model belongs to a different robot (link lists differ)")
         self.acm = allowed_collision_matrix(model) if acm is None else np.asarray(acm, dtype=bool)
-        self.T_world_base = np.eye(4) if T_world_base is None else np.ascontiguousarray(T_world_base, dtype=float)
+        self.T_world_base = np.eye(4) if T_world_base is None else np.ascontiguousarray(
+            check_pose(T_world_base, "SphereChecker: T_world_base"))
+        if self.T_world_base.shape != (4, 4):
+            raise PrehensileError(f"SphereChecker: T_world_base must be one pose (4, 4), got {self.T_world_base.shape}")
         frames, groups = frames_and_groups(model, self.spheres)
         g_link = groups["link"]
         pairs = [(a, b) for a in range(len(g_link)) for b in range(a + 1, len(g_link))
@@ -233,7 +237,7 @@ class SphereChecker:
     def ball_contacts(self, q: np.ndarray) -> list[tuple[str, str]]:
         """Where the balls collide at one configuration q (dof,): (link, other link) for each
         pair of links the ACM does not skip whose balls overlap, and (link, "world") for each
-        moving link whose balls meet an obstacle."""
+        link whose balls meet an obstacle (links on the root body only if :attr:`static_hit`)."""
         q = self.model.check_configuration(q)
         s, names = self.spheres, self.model.link_names
         T = forward_kinematics(self.model, q, self.T_world_base)[s.sphere_link]
@@ -243,17 +247,22 @@ class SphereChecker:
         hit = (gap < 0) & (la < lb) & ~self.acm[la, lb]
         pairs = sorted({(int(a), int(b)) for a, b in zip(la[hit], lb[hit])})
         out = [(names[a], names[b]) for a, b in pairs]
-        tested = self.data[14]
+        tested = self.data[14] | self.static_hit  # the root body's balls count where static_hit says so
         for g in np.flatnonzero(tested):
             if self._hits_world(q, np.arange(len(tested)) == g):
                 out.append((names[self.group_links[g]], "world"))
         return out
 
+    def _batch(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(q, its rows (B, dof) contiguous) for configurations q (*batch, dof); a robot without
+        joints (dof 0) included."""
+        q = self.model.check_configuration(q)
+        return q, np.ascontiguousarray(q.reshape(int(np.prod(q.shape[:-1])), self.model.dof))
+
     def is_free(self, q: np.ndarray) -> np.ndarray:
         """(*batch,) bool: no ball meets an obstacle or a ball of a non-allowed link, for q
         (*batch, dof) (rad or m)."""
-        q = self.model.check_configuration(q)
-        flat = np.ascontiguousarray(q.reshape(-1, self.model.dof))
+        q, flat = self._batch(q)
         out = np.empty(len(flat), dtype=np.bool_)
         if self.static_hit:
             out[:] = False
@@ -269,8 +278,7 @@ class SphereChecker:
         Balls on the root body are not measured against the world (they never move; see
         :attr:`static_hit`).
         """
-        q = self.model.check_configuration(q)
-        flat = np.ascontiguousarray(q.reshape(-1, self.model.dof))
+        q, flat = self._batch(q)
         data, scales = (self.data, self._scales) if self_pairs else self._world_only
         out = np.empty(len(flat))
         if self.static_hit:
@@ -283,8 +291,7 @@ class SphereChecker:
         """(free, near), each (*batch,) bool, for q (*batch, dof): ``free`` as :meth:`is_free`,
         ``near``: some ball is closer than ``margin`` (m) to an obstacle (as
         ``clearance(q, self_pairs=False) < margin``); one compiled call for both."""
-        q = self.model.check_configuration(q)
-        flat = np.ascontiguousarray(q.reshape(-1, self.model.dof))
+        q, flat = self._batch(q)
         free, near = np.empty(len(flat), dtype=np.bool_), np.empty(len(flat), dtype=np.bool_)
         if self.static_hit:
             free[:], near[:] = False, True

@@ -350,11 +350,7 @@ class PlanningContext:
         """Contacts (link, obstacle, depth m) of the robot's root body with the world on the
         exact geometry. The root body never moves, so its balls are tested against the world
         once; a robot standing on a table is free although its base's balls reach into it."""
-        model, names = self.collision_model, {o.name for o in self.obstacles}
-        body = rigid_bodies(model)
-        root_body = body[np.flatnonzero(model.link_parent < 0)[0]]
-        root = {model.link_names[i] for i in np.flatnonzero(body == root_body)}
-        return [c for c in self.exact.collisions(self.space.q_ref) if c[0] in root and c[1] in names]
+        return self.exact.root_contacts(self.space.q_ref)
 
     def _motion_tables(self) -> tuple:
         model, checker = self.collision_model, self.spheres

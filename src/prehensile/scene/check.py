@@ -101,7 +101,8 @@ def check_scene(scene: Scene, method: str = "exact") -> SceneCheck:
         scene: the scene; robots use :attr:`PlacedRobot.configuration`.
         method: "exact" (meshes and primitives with coal, reports each pair and its depth) or
             "spheres" (the robot's sphere model against the world shapes; conservative: the
-            contacts name the links whose balls overlap, "world" for any obstacle, no depth).
+            contacts name the links whose balls overlap, "world" for any obstacle, no depth;
+            the base, which never moves, meets the world only where its exact geometry does).
 
     Returns:
         A :class:`SceneCheck`; ``free`` is True when no robot touches anything.
@@ -122,9 +123,9 @@ def check_scene(scene: Scene, method: str = "exact") -> SceneCheck:
 
 def _check_robot(robot: PlacedRobot, obstacles: list[Obstacle], method: str) -> RobotCheck:
     q = robot.configuration
-    if method == "exact":
-        from prehensile.collision import ExactChecker
+    from prehensile.collision import ExactChecker
 
+    if method == "exact":
         checker = ExactChecker(robot.model, obstacles, T_world_base=robot.T_world_base)
         contacts = _merge(robot.name, checker.collisions(q, "world"), "world") + _merge(
             robot.name, checker.collisions(q, "self"), "self")
@@ -132,6 +133,11 @@ def _check_robot(robot: PlacedRobot, obstacles: list[Obstacle], method: str) -> 
     from prehensile.collision import SphereChecker
 
     checker = SphereChecker(robot.model, obstacles, T_world_base=robot.T_world_base)
+    exact = ExactChecker(robot.model, obstacles, T_world_base=robot.T_world_base) if checker.static_hit else None
+    if exact is not None and not exact.root_contacts(q):
+        # only the bounding balls of the base meet the world (a robot on a table): the base
+        # never moves, so its exact geometry decides, as in planning
+        checker = SphereChecker(robot.model, obstacles, T_world_base=robot.T_world_base, static_hit=False)
     if checker.is_free(q):
         return RobotCheck(robot.name, True, ())
     # the balls name the links, not the obstacle ("world"), and measure no depth
