@@ -14,7 +14,7 @@ from prehensile.collision.acm import rigid_bodies
 from prehensile.collision.sphere_checker import SphereChecker
 from prehensile.collision.sphere_fit import geometry_triangles
 from prehensile.collision.world import Obstacle
-from prehensile.errors import PrehensileError
+from prehensile.errors import ModelError, PrehensileError
 from prehensile.collision.spheres import (
     SphereModel, generate_sphere_model, pad_sphere_model, spheres_from_urdf,
 )
@@ -284,3 +284,17 @@ def test_checker_inputs_a_robot_without_joints_and_contacts_of_the_base():
         checker = SphereChecker(rigid, world)
         assert checker.is_free(np.zeros(0)) == free and checker.is_free(np.zeros((3, 0))).tolist() == [free] * 3
         assert (checker.clearance(np.zeros(0)) > 0) == free
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    ({"max_edge": 0.0}, "max_edge must be a positive length"),  # used to subdivide forever
+    ({"max_radius": -1.0}, "max_radius must be a positive length"),
+    ({"n_spheres": 0}, "n_spheres must be a whole number >= 1"),
+])
+def test_sphere_generation_refuses_bad_parameters(kwargs, message):
+    with pytest.raises(ModelError, match=f"generate_sphere_model: {message}"):
+        generate_sphere_model(_primitive_robot(), cache=False, **kwargs)
+    if "max_edge" in kwargs:
+        model = _primitive_robot()
+        with pytest.raises(ModelError, match=f"pad_sphere_model: {message}"):
+            pad_sphere_model(generate_sphere_model(model, cache=False), model, cache=False, **kwargs)

@@ -123,6 +123,14 @@ def _from_lists(model: RobotModel, per_link: list[tuple[np.ndarray, np.ndarray]]
     return SphereModel(model.link_names, links, centers, radii, covering)
 
 
+def _check_positive(who: str, **values: float | None) -> None:
+    """ModelError naming ``who`` and the argument unless every value given (not None) is a
+    positive finite length (m)."""
+    for name, value in values.items():
+        if value is not None and not (np.isfinite(value) and value > 0):
+            raise ModelError(f"{who}: {name} must be a positive length (m), got {value}")
+
+
 def generate_sphere_model(
     model: RobotModel, n_spheres: int = 8, max_radius: float | None = None, max_edge: float = 0.02,
     cache: bool = True,
@@ -144,7 +152,13 @@ def generate_sphere_model(
             (the Panda's links at about 0.07 m); the links left above it are logged (INFO).
         max_edge: triangle subdivision length (m).
         cache: read and write the disk cache.
+
+    Raises:
+        ModelError: ``n_spheres`` below 1, or ``max_radius`` / ``max_edge`` not positive.
     """
+    _check_positive("generate_sphere_model", max_edge=max_edge, max_radius=max_radius)
+    if not (float(n_spheres) == int(n_spheres) and n_spheres >= 1):
+        raise ModelError(f"generate_sphere_model: n_spheres must be a whole number >= 1, got {n_spheres}")
     params = {"kind": "generate", "n_spheres": int(n_spheres), "max_radius": max_radius, "max_edge": float(max_edge)}
 
     def build() -> SphereModel:
@@ -212,6 +226,9 @@ def pad_sphere_model(
     """
     if tuple(spheres.link_names) != tuple(model.link_names):
         raise ModelError("pad_sphere_model: the sphere model belongs to a different link list")
+    _check_positive("pad_sphere_model", max_edge=max_edge, extra_radius=extra_radius)
+    if not max_growth >= 0:
+        raise ModelError(f"pad_sphere_model: max_growth must be >= 0 (m), got {max_growth}")
     params = {"kind": "pad", "max_edge": float(max_edge), "max_growth": float(max_growth),
               "extra_radius": float(extra_radius), "spheres": sphere_cache.array_digest(spheres.arrays())}
 
