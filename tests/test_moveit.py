@@ -176,8 +176,6 @@ def test_inline_mesh_is_kept():
     ({"id": "x", "primitives": [{"type": "box", "dimensions": [1, 2]}], "primitive_poses": [{}]}, "needs 3 dimensions"),
     ({"id": "x", "primitives": [{"type": "sphere", "dimensions": [-1]}], "primitive_poses": [{}]}, "must be positive"),
     ({"id": "x", "primitives": [{"type": "box", "dimensions": [1, 1, 1]}], "primitive_poses": []}, "1 primitives but 0"),
-    ({"id": "x", "primitives": [{"type": "box", "dimensions": [1, 1, 1]}],
-      "primitive_poses": [{"orientation": [0, 0, 0, 2]}]}, "not a unit quaternion"),
     ({"id": "x", "header": {"frame_id": "panda_hand"}, "primitives": [{"type": "box", "dimensions": [1, 1, 1]}],
       "primitive_poses": [{}]}, "frame 'panda_hand' is not supported"),
     ({"id": "x"}, "has no primitives or meshes"),
@@ -186,6 +184,21 @@ def test_bad_collision_objects(obj, fragment):
     with pytest.raises(SceneError) as info:
         moveit_scene_from_dict({"world": {"collision_objects": [obj]}}, "bad.yaml")
     assert "bad.yaml: world.collision_objects[0] 'x'" in str(info.value) and fragment in str(info.value)
+
+
+@pytest.mark.parametrize("orientation, rotation", [
+    ([0, 0, 0, 0], np.eye(3)),  # the message default
+    ([0, 0, 0, 2], np.eye(3)),
+    ([0, 0, 2, 0], np.diag([-1.0, -1.0, 1.0])),  # half a turn about z
+])
+def test_quaternions_are_read_as_moveit_reads_them(orientation, rotation, caplog):
+    """MoveIt takes an all-zero quaternion as the identity and normalises the others (warning)."""
+    obj = {"id": "x", "primitives": [{"type": "box", "dimensions": [1, 1, 1]}],
+           "primitive_poses": [{"orientation": orientation}]}
+    body = moveit_scene_from_dict({"world": {"collision_objects": [obj]}}, "q.yaml").obstacles[0]
+    np.testing.assert_allclose(body.T_world_body[:3, :3] @ body.geometries[0].T_link_geom[:3, :3], rotation,
+                               atol=1e-12)
+    assert "world.collision_objects[0] 'x'" in caplog.text and "quaternion" in caplog.text
 
 
 def test_missing_path_is_a_scene_error(tmp_path):

@@ -213,3 +213,12 @@ def test_spheres_judge_a_base_on_a_table_by_its_geometry(tmp_path, height, free)
     (robot,) = check_scene(load_scene(_write(tmp_path, scene)), "spheres").robots
     assert robot.free == free
     assert free or ("panda_link0", "world") in [(c.link, c.other) for c in robot.contacts]
+
+
+def test_exponents_without_a_decimal_point_are_numbers(tmp_path):
+    """``1e-05`` (as Python and JSON write small numbers) is a string to YAML 1.1's resolver."""
+    path = tmp_path / "tiny.yaml"
+    path.write_text("obstacles:\n  - {name: chip, pose: {position: [0.5, 0, 1e-05]},\n"
+                    "     shape: {type: box, size: [1e-2, 2E-2, 0.5]}}\n")
+    (chip,) = load_scene(path).obstacles
+    assert chip.T_world_body[2, 3] == 1e-05 and chip.geometries[0].shape.size == (0.01, 0.02, 0.5)

@@ -43,7 +43,7 @@ from prehensile.model.robot_model import RobotModel
 from prehensile.scene.scene import Body, PlacedRobot, Scene
 from prehensile.storage import atomic_write_text
 from prehensile.scene.schema import (
-    check_keys, number, read_pose, read_shape, relative_path, write_pose, write_shape,
+    YamlLoader, check_keys, number, read_pose, read_shape, relative_path, write_pose, write_shape,
 )
 
 FORMAT_VERSION = 1
@@ -70,7 +70,7 @@ def load_scene(path: str | os.PathLike) -> Scene:
         raise SceneError(f"{path}: scene file not found")
     try:
         with path.open(encoding="utf-8") as stream:  # yaml's messages then name the file
-            data = yaml.safe_load(stream)
+            data = yaml.load(stream, Loader=YamlLoader)
     except yaml.YAMLError as err:
         raise SceneError(f"{path}: not valid YAML ({err})") from None
     except UnicodeDecodeError:
@@ -110,7 +110,7 @@ def robot_goals(path: str | os.PathLike, scene: Scene) -> dict[str, dict[str, fl
         SceneError: a goal that is not a mapping or is empty, names a joint the robot does not
             have, or holds a value outside the joint's limits.
     """
-    data = yaml.safe_load(Path(path).read_text(encoding="utf-8")) or {}
+    data = yaml.load(Path(path).read_text(encoding="utf-8"), Loader=YamlLoader) or {}
     goals = {}
     for i, (entry, robot) in enumerate(zip(_list(data, "robots", str(path)), scene.robots)):
         if isinstance(entry, Mapping) and entry.get("goal") is not None:

@@ -3,7 +3,9 @@
 MoveIt conventions and how they are mapped:
 
 - Quaternions in MoveIt messages are ``(x, y, z, w)`` (lists or ``{x, y, z, w}`` mappings);
-  prehensile converts them to its own ``(w, x, y, z)``. Positions are in m.
+  prehensile converts them to its own ``(w, x, y, z)``. As MoveIt, it takes an all-zero one
+  (the message default) as the identity and normalises others, with a warning. Positions are
+  in m.
 - A collision object may carry an object ``pose`` (MoveIt >= 2 / Noetic-late) plus a pose per
   primitive or mesh; the shape's world pose is ``T_world_object @ T_object_shape``. Without an
   object pose the per-shape poses are world poses (older MoveIt).
@@ -38,6 +40,7 @@ from prehensile.errors import SceneError
 from prehensile.model.geometry import Box, Cylinder, Geometry, Mesh, Sphere
 from prehensile.model.robot_model import RobotModel
 from prehensile.scene.scene import Body, PlacedRobot, Scene
+from prehensile.scene.schema import YamlLoader
 from prehensile.spatial import make_pose, quaternion_to_matrix
 
 log = logging.getLogger(__name__)
@@ -45,7 +48,6 @@ log = logging.getLogger(__name__)
 _PRIMITIVE_IDS = {1: "box", 2: "sphere", 3: "cylinder", 4: "cone", 5: "prism"}
 _WORLD_FRAMES = ("", "world", "/world")
 _PROBLEM_FILE = re.compile(r"^(scene|request)(\d+)\.ya?ml$")
-_Loader = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 
 
 @dataclass(frozen=True)
@@ -330,9 +332,13 @@ def _rigid(position: Any, orientation: Any, where: str) -> np.ndarray:
     xyz = _vector(position, "xyz", f"{where}.position")
     x, y, z, w = _vector(orientation, "xyzw", f"{where}.orientation (x, y, z, w)")
     norm = float(np.linalg.norm([w, x, y, z]))
-    if abs(norm - 1.0) > 1e-3:
-        raise SceneError(f"{where}.orientation: not a unit quaternion (x, y, z, w) = {[x, y, z, w]} (norm {norm:.6g})")
-    return make_pose(quaternion_to_matrix(np.array([w, x, y, z])), xyz)
+    if norm == 0.0:  # the message default, read by MoveIt as no rotation
+        log.warning("%s.orientation: all-zero quaternion, taken as the identity (as MoveIt does)", where)
+        x, y, z, w, norm = 0.0, 0.0, 0.0, 1.0, 1.0
+    elif abs(norm - 1.0) > 1e-3:
+        log.warning("%s.orientation: quaternion (x, y, z, w) = %s has norm %.6g; normalised (as MoveIt does)",
+                    where, [float(v) for v in (x, y, z, w)], norm)
+    return make_pose(quaternion_to_matrix(np.array([w, x, y, z]) / norm), xyz)
 
 
 def _vector(value: Any, keys: str, where: str) -> np.ndarray:
@@ -369,7 +375,7 @@ def _read_yaml_file(path: Path) -> Any:
 
 def _parse(text: str, source: str) -> Any:
     try:
-        return yaml.load(text, Loader=_Loader)
+        return yaml.load(text, Loader=YamlLoader)
     except yaml.YAMLError as err:
         raise SceneError(f"{source}: not valid YAML ({err})") from None
 

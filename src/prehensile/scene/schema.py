@@ -26,10 +26,12 @@ from __future__ import annotations
 import difflib
 import math
 import os
+import re
 from pathlib import Path
 from typing import Any, Mapping
 
 import numpy as np
+import yaml
 
 from prehensile.errors import SceneError
 from prehensile.model.geometry import Box, Capsule, Cylinder, Geometry, Mesh, Shape, Sphere
@@ -65,6 +67,15 @@ def check_keys(entry: Any, allowed: tuple[str, ...], where: str, required: tuple
         if key not in entry:
             raise SceneError(f"{where}: missing key '{key}'")
     return entry
+
+
+class YamlLoader(getattr(yaml, "CSafeLoader", yaml.SafeLoader)):
+    """PyYAML's safe loader (the C one where built) that reads exponents without a decimal
+    point, ``1e-05`` as Python and JSON write them, as numbers (YAML 1.2) instead of strings."""
+
+
+YamlLoader.add_implicit_resolver("tag:yaml.org,2002:float", re.compile(r"^[-+]?(?:\d+\.?\d*|\.\d+)[eE][-+]?\d+$"),
+                                 list("-+0123456789."))
 
 
 def number(value: Any, where: str, positive: bool = False) -> float:
