@@ -165,7 +165,7 @@ def test_invalid_start_is_reported_with_its_reason(tmp_path):
 
 
 @pytest.mark.parametrize("goal, message", [
-    ({}, "no joint goal"),
+    ({}, "has no joint_constraints; only joint goals are supported"),
     ({"Elbow_X": 0.1}, "robot 'armar3' has no joint Elbow_X"),
     ({"Elbow_L": 0.1}, "Elbow_L not in the planned group 'RightArm'"),
     ({"Elbow_R": 0.1}, "no goal for planned joint"),

@@ -14,8 +14,8 @@ from scipy.spatial.transform import Rotation
 from prehensile.errors import SceneError
 from prehensile.model import load_urdf
 from prehensile.model.geometry import Box, Cylinder, Sphere
-from prehensile.scene import iter_mbm_problems, load_motion_plan_request, load_moveit_scene
-from prehensile.scene.moveit import moveit_scene_from_dict
+from prehensile.scene import iter_mbm_problems, load_motion_plan_request, load_moveit_scene, load_scene, save_scene
+from prehensile.scene.moveit import motion_plan_request_from_dict, moveit_scene_from_dict
 
 MBM = Path(__file__).resolve().parents[1].parent / "shared" / "bench" / "mbm" / "panda"
 TARBALL = MBM / "problems.tar.bz2"
@@ -113,6 +113,9 @@ def test_folder_and_single_files_with_robot(tmp_path):
     assert len(single.obstacles) == len(scene.obstacles)
     (robot,) = single.robots
     assert robot.model is model and robot.configuration.shape == (model.dof,)
+    assert model.within_limits(robot.configuration)  # MBM's robot_state holds panda_joint4 = 0: clipped
+    save_scene(single, tmp_path / "saved.yaml")
+    assert len(load_scene(tmp_path / "saved.yaml").obstacles) == len(scene.obstacles)
     single_request = load_motion_plan_request(tmp_path / "cage_panda" / "request0003.yaml")
     assert tuple(single_request) == tuple(request) and single_request.source == request.source
 
@@ -199,6 +202,12 @@ def test_quaternions_are_read_as_moveit_reads_them(orientation, rotation, caplog
     np.testing.assert_allclose(body.T_world_body[:3, :3] @ body.geometries[0].T_link_geom[:3, :3], rotation,
                                atol=1e-12)
     assert "world.collision_objects[0] 'x'" in caplog.text and "quaternion" in caplog.text
+
+
+def test_a_request_without_joint_goals_is_refused():
+    pose_goal = {"group_name": "arm", "goal_constraints": [{"position_constraints": [{"link_name": "hand"}]}]}
+    with pytest.raises(SceneError, match="r.yaml: goal_constraints\\[0\\] has no joint_constraints; only joint goals"):
+        motion_plan_request_from_dict(pose_goal, "r.yaml")
 
 
 def test_missing_path_is_a_scene_error(tmp_path):

@@ -12,7 +12,7 @@ import yaml
 
 from prehensile.errors import SceneError
 from prehensile.model.geometry import Box, Capsule, Cylinder, Mesh, Sphere
-from prehensile.scene import bundled_scene_path, check_scene, load_scene, save_scene
+from prehensile.scene import PlacedRobot, Scene, bundled_scene_path, check_scene, load_scene, save_scene
 from prehensile.spatial import quaternion_to_matrix, rpy_to_matrix
 
 DATA = Path(__file__).parent / "data" / "scenes"
@@ -97,6 +97,9 @@ def test_bundled_robot_by_name_round_trips(tmp_path):
     assert scene.robots[0].reference == name
     save_scene(scene, tmp_path / "out.yaml")
     assert yaml.safe_load((tmp_path / "out.yaml").read_text())["robots"][0]["robot"] == name
+    # a bundled model placed by hand (no scene file named it) is written by name: its SRDF comes along
+    save_scene(Scene(robots=(PlacedRobot("r", robots.load(name)),)), tmp_path / "by_hand.yaml")
+    assert yaml.safe_load((tmp_path / "by_hand.yaml").read_text())["robots"][0]["robot"] == name
 
 
 def _mutate(change):

@@ -149,8 +149,6 @@ def check_goal(model: RobotModel, problem: MBMProblem, joints: Sequence[str]) ->
     """
     request = problem.request
     where = f"{request.source}: goal_constraints[0].joint_constraints"
-    if not request.goal:
-        raise PrehensileError(f"{where}: no joint goal (bench mbm plans to joint goals)")
     planned = ", ".join(joints)
     unknown = [j for j in request.goal if j not in model.joint_names]
     if unknown:

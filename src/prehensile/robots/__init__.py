@@ -50,6 +50,15 @@ def available() -> list[str]:
     return sorted(name for name, (path, _) in _bundled().items() if path is not None and path.is_file())
 
 
+def bundled_name(model: RobotModel) -> str | None:
+    """The bundled name of a model loaded from a bundled robot's files (its description and
+    SRDF), e.g. ``load("panda")``; None for any other model."""
+    for name, (path, srdf) in _bundled().items():
+        if path is not None and model.source == str(path) and model.srdf_source == str(srdf):
+            return name
+    return None
+
+
 @lru_cache(maxsize=None)
 def _load_bundled(name: str) -> RobotModel:
     path, srdf = _bundled()[name]

@@ -230,13 +230,15 @@ def _read_body(entry: Any, base_dir: Path, where: str) -> Body:
 
 
 def _write_robot(robot: PlacedRobot, base_dir: Path) -> dict:
-    if robot.reference and _is_bundled_name(robot.reference):
-        written = robot.reference
-    elif robot.model.source:
+    from prehensile.robots import bundled_name
+
+    # a bundled robot loaded any other way (e.g. for a MoveIt scene) is written by name too: its SRDF comes along
+    written = robot.reference if robot.reference and _is_bundled_name(robot.reference) else bundled_name(robot.model)
+    if written is None:
+        if not robot.model.source:
+            raise SceneError(f"robot '{robot.name}': no bundled name or model file to write")
         # A file reference was relative to the old scene file: rewrite it from the model's source.
         written = relative_path(Path(robot.model.source), base_dir)
-    else:
-        raise SceneError(f"robot '{robot.name}': no bundled name or model file to write")
     out: dict[str, Any] = {"name": robot.name, "robot": written, "pose": write_pose(robot.T_world_base)}
     if robot.q is not None:
         neutral = robot.model.neutral_configuration()

@@ -19,7 +19,8 @@ MoveIt conventions and how they are mapped:
   shapes (``Mesh.from_arrays``, no file).
 - ``robot_state`` (joint values and the ``virtual_joint`` base transform) is applied only when
   a robot model is passed: MoveIt scenes name the robot but prehensile does not guess which
-  model file matches it.
+  model file matches it. Joint values outside the limits are clipped into them (warning), so
+  that the scene can be saved and loaded again as a scene file.
 """
 
 from __future__ import annotations
@@ -200,6 +201,9 @@ def motion_plan_request_from_dict(data: Any, source: str) -> MotionPlanRequest:
             if "joint_name" not in jc:
                 raise SceneError(f"{where}: missing 'joint_name'")
             goal[str(jc["joint_name"])] = _number(jc.get("position"), f"{where}.position")
+    if not goal:
+        raise SceneError(f"{source}: goal_constraints[0] has no joint_constraints; only joint goals are supported "
+                         "(position and orientation constraints are not)")
     return MotionPlanRequest(
         group=str(data.get("group_name", "")),
         start=start,
@@ -292,6 +296,11 @@ def _placed_robot(state: Any, model: RobotModel, where: str) -> PlacedRobot:
     for joint, value in values.items():
         if joint in model.joint_names:
             q[model.joint_index(joint)] = value
+    outside = np.flatnonzero((q < model.lower) | (q > model.upper))
+    if len(outside):  # MBM's scenes hold panda_joint4 = 0, outside [-3.07, -0.07]
+        log.warning("%s: %s outside the joint limits, clipped into them", where,
+                    ", ".join(f"{model.joint_names[i]} = {q[i]:.6g}" for i in outside))
+        q = np.clip(q, model.lower, model.upper)
     T_world_base = np.eye(4)
     multi = _mapping(state.get("multi_dof_joint_state") or {}, f"{where}.multi_dof_joint_state")
     transforms = multi.get("transforms") or []
