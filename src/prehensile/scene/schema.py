@@ -33,7 +33,7 @@ from typing import Any, Mapping
 import numpy as np
 import yaml
 
-from prehensile.errors import SceneError
+from prehensile.errors import ModelError, SceneError
 from prehensile.model.geometry import Box, Capsule, Cylinder, Geometry, Mesh, Shape, Sphere
 from prehensile.spatial import make_pose, matrix_to_rpy, quaternion_to_matrix, rpy_to_matrix
 
@@ -174,7 +174,12 @@ def _read_mesh(entry: Mapping, base_dir: Path, where: str) -> Mesh:
         scale3 = numbers(scale, 3, f"{where}.scale", positive=True)
     else:
         scale3 = np.full(3, number(scale, f"{where}.scale", positive=True))
-    return Mesh(path.resolve(), tuple(float(s) for s in scale3))
+    mesh = Mesh(path.resolve(), tuple(float(s) for s in scale3))
+    try:
+        mesh.trimesh  # read now (it is kept), so that a file without triangles names its entry
+    except ModelError as error:
+        raise SceneError(f"{where}.file: {error}") from None
+    return mesh
 
 
 def write_shape(geometry: Geometry, base_dir: Path) -> dict:
