@@ -277,6 +277,11 @@ def test_checker_inputs_a_robot_without_joints_and_contacts_of_the_base():
         SphereChecker(model, [brick], T_world_base=nan_base)
     with pytest.raises(PrehensileError, match="SphereChecker: T_world_base: .*not a rotation"):
         SphereChecker(model, [brick], T_world_base=np.diag([10.0, 10.0, 10.0, 1.0]))
+    with pytest.raises(PrehensileError, match=r"SphereChecker: acm must be \(5, 5\)"):
+        SphereChecker(model, [brick], acm=np.zeros((4, 4), bool))
+    balls = generate_sphere_model(model, cache=False)
+    with pytest.raises(ModelError, match="non-finite radius"):
+        SphereModel(balls.link_names, balls.sphere_link, balls.centers, np.full(balls.n_spheres, np.nan))
     checker = SphereChecker(model, [brick])
     assert checker.static_hit and ("base", "world") in checker.ball_contacts(np.zeros(2))
     rigid = build_model("rigid", "test", [LinkSpec("base", collisions=[Geometry(Box((0.2, 0.2, 0.2)))])], [])

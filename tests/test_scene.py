@@ -154,6 +154,10 @@ def test_missing_and_malformed_files(tmp_path):
         load_scene(broken)
     assert f'in "{broken}", line 2' in str(error.value)  # yaml's own position names the file too
     assert load_scene(_write(tmp_path, {}, "empty.yaml")).bodies == ()
+    moveit = tmp_path / "moveit.yaml"
+    moveit.write_text("name: scene\nworld: {collision_objects: []}\n")
+    with pytest.raises(SceneError, match="moveit.yaml: a MoveIt PlanningScene, not a prehensile scene file; read it with"):
+        load_scene(moveit)
     (tmp_path / "garbage.stl").write_text("not a mesh")
     scene = {"obstacles": [{"name": "g", "shape": {"type": "mesh", "file": "garbage.stl"}}]}
     with pytest.raises(SceneError, match=r"scene.yaml: obstacles\[0\] 'g'.shape \(mesh\).file: mesh .*garbage.stl"):

@@ -190,6 +190,9 @@ class SphereChecker:
         if tuple(self.spheres.link_names) != tuple(model.link_names):
             raise PrehensileError("SphereChecker: the sphere model belongs to a different robot (link lists differ)")
         self.acm = allowed_collision_matrix(model) if acm is None else np.asarray(acm, dtype=bool)
+        if self.acm.shape != (model.n_links, model.n_links):
+            raise PrehensileError(f"SphereChecker: acm must be ({model.n_links}, {model.n_links}) for the links of "
+                                  f"'{model.name}', got {self.acm.shape}")
         self.T_world_base = np.eye(4) if T_world_base is None else np.ascontiguousarray(
             check_pose(T_world_base, "SphereChecker: T_world_base"))
         if self.T_world_base.shape != (4, 4):

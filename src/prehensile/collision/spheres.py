@@ -57,8 +57,8 @@ class SphereModel:
             raise ModelError("SphereModel: sphere_link, centers and radii differ in length")
         if len(link) and (link.min() < 0 or link.max() >= len(self.link_names)):
             raise ModelError("SphereModel: sphere_link index outside the link list")
-        if np.any(self.radii < 0) or not np.all(np.isfinite(self.centers)):
-            raise ModelError("SphereModel: negative radius or non-finite centre")
+        if not (np.all(self.radii >= 0) and np.all(np.isfinite(self.radii)) and np.all(np.isfinite(self.centers))):
+            raise ModelError("SphereModel: negative or non-finite radius, or non-finite centre")
 
     @property
     def n_spheres(self) -> int:

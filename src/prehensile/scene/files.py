@@ -80,6 +80,9 @@ def load_scene(path: str | os.PathLike) -> Scene:
 
 def scene_from_dict(data: Any, base_dir: Path, source: str = "<scene>") -> Scene:
     """Build a :class:`Scene` from the parsed YAML ``data``; ``source`` prefixes error messages."""
+    if isinstance(data, Mapping) and {"world", "robot_state"} & set(data):
+        raise SceneError(f"{source}: a MoveIt PlanningScene, not a prehensile scene file; read it with "
+                         "prehensile.scene.load_moveit_scene (see docs/scenes.md)")
     check_keys(data, SCENE_KEYS, source)
     if "version" in data and data["version"] != FORMAT_VERSION:
         raise SceneError(f"{source}: version: unsupported scene format {data['version']!r}; valid: {FORMAT_VERSION}")
