@@ -59,6 +59,17 @@ def test_an_mjcf_robot_takes_the_srdf_beside_it_or_the_one_given(tmp_path):
     assert solved.exit_code in (0, 1) and "wrist" in solved.stdout
 
 
+def test_a_bug_exits_3_with_its_traceback_not_with_a_result_code(monkeypatch):
+    from prehensile.cli import robot as robot_cmd
+
+    def broken(model):
+        raise ZeroDivisionError("a bug")
+
+    monkeypatch.setattr(robot_cmd, "robot_info", broken)
+    result = _run("robot", "info", "panda")
+    assert result.exit_code == 3 and "ZeroDivisionError" in result.output and "internal error" in result.output
+
+
 def test_robot_list_names_bundled_robots():
     result = _run("robot", "list")
     assert result.exit_code == 0 and "panda" in result.stdout.split()

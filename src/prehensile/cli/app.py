@@ -18,14 +18,16 @@ app.add_typer(bench_app, name="bench")
 console = Console(highlight=False, width=None if sys.stdout.isatty() else 120)
 err_console = Console(stderr=True, highlight=False)
 
-EXIT_FREE, EXIT_COLLIDING, EXIT_BAD_INPUT = 0, 1, 2
+EXIT_FREE, EXIT_COLLIDING, EXIT_BAD_INPUT, EXIT_INTERNAL = 0, 1, 2, 3
 
 SRDF_OPTION = typer.Option(None, "--srdf", help="SRDF to apply: planning groups (chains), end effectors, disabled "
                            "collision pairs (default: <stem>.srdf next to a URDF or MJCF file, if present).")
 
 
 def handles_errors(command):
-    """Turn a PrehensileError into one red line on stderr and exit code 2."""
+    """Turn a PrehensileError into one red line on stderr and exit code 2, and any other
+    exception (a bug) into its traceback and exit code 3, so that no failure exits with the
+    code of a result (1: colliding, no path, no solution)."""
 
     @functools.wraps(command)
     def wrapper(*args, **kwargs):
@@ -34,6 +36,12 @@ def handles_errors(command):
         except PrehensileError as err:
             err_console.print(f"[bold red]error:[/] [red]{err}[/]", soft_wrap=True, markup=True)
             raise typer.Exit(EXIT_BAD_INPUT) from None
+        except typer.Exit:
+            raise
+        except Exception:
+            err_console.print_exception()
+            err_console.print("[bold red]internal error[/] (a bug: please report it with the traceback above)")
+            raise typer.Exit(EXIT_INTERNAL) from None
 
     return wrapper
 
