@@ -8,7 +8,8 @@ Commands::
     prehensile demo [--out DIR]
 
 Bad input (any :class:`~prehensile.errors.PrehensileError`) prints one red line and exits
-with code 2; ``check`` exits 0 when the scene is collision-free and 1 when something collides.
+with code 2, any other error (a bug) its traceback with code 3; ``check`` exits 0 when the
+scene is collision-free and 1 when something collides.
 """
 
 from __future__ import annotations
