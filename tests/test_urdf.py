@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -10,6 +12,7 @@ from prehensile.errors import ModelError
 from prehensile.kinematics import forward_kinematics
 from prehensile.model import Box, Capsule, Cylinder, Mesh, Sphere, load_urdf
 
+WEDGE = Path(__file__).parent / "data" / "scenes" / "wedge.obj"
 ARM = """<robot name="arm">
   <link name="base"><collision><geometry><box size="0.2 0.2 0.1"/></geometry></collision></link>
   <link name="upper"><collision><origin xyz="0 0 0.15"/><geometry><cylinder radius="0.04" length="0.3"/></geometry></collision></link>
@@ -98,6 +101,8 @@ def test_chain_from_srdf_and_disabled_pairs(tmp_path):
         (lambda t: t.replace('xyz="0 1 0"/><limit lower="-2"', 'xyz="0 0 0"/><limit lower="-2"'), "zero or invalid axis"),
         (lambda t: t.replace('radius="0.04" length="0.3"', 'radius="-0.04" length="0.3"'), "link 'upper' <collision> #0 <cylinder>: must be positive"),
         (lambda t: t.replace('<box size="0.2 0.2 0.1"/>', '<mesh filename="meshes/missing.stl"/>'), "link 'base' <collision> #0 <mesh>: file 'meshes/missing.stl' not found"),
+        (lambda t: t.replace('<box size="0.2 0.2 0.1"/>', f'<mesh filename="{WEDGE}" scale="0 1 1"/>'),
+         "link 'base' <collision> #0 <mesh> scale: every factor must be non-zero"),
         (lambda t: t.replace('mimic joint="finger_a"', 'mimic joint="ghost"'), "mimics 'ghost'"),
         (lambda t: t.replace("</robot>", "<joint"), "malformed XML"),
         (lambda t: t.replace('<origin xyz="0 0 0.3"/>', '<origin xyz="0 0 nan"/>'), "joint 'elbow' <origin xyz>"),

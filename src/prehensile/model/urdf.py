@@ -54,6 +54,8 @@ def _geometry(element: ET.Element, base_dir: Path, where: str) -> Geometry | Non
     elif tag == "mesh":
         path = resolve_uri(required(shape_el, "filename", w), base_dir, w)
         scale = floats(shape_el.get("scale"), 3, f"{w} scale", [1.0, 1.0, 1.0])
+        if not np.all(np.asarray(scale) != 0.0):  # negative mirrors; zero flattens the mesh
+            raise ModelError(f"{w} scale: every factor must be non-zero, got {' '.join(map(str, scale))}")
         shape = Mesh(path, tuple(float(s) for s in scale))
     else:
         raise ModelError(f"{w}: unknown geometry; valid: box, sphere, cylinder, capsule, mesh")
