@@ -122,6 +122,7 @@ CASES = [
     ("nan size", lambda d: d["obstacles"][0]["shapes"][0].update(size=[1, float("nan"), 1]), ["obstacles[0] 'table'.shapes[0]", "finite"]),
     ("negative radius", lambda d: d["objects"][0]["shape"].update(radius=-0.1), ["objects[0] 'ball'.shape", "radius", "positive"]),
     ("zero length", lambda d: d["obstacles"][0]["shapes"][1].update(length=0), ["obstacles[0] 'table'.shapes[1]", "length", "positive"]),
+    ("negative capsule", lambda d: d["objects"][1]["shape"].update(length=-0.1), ["objects[1] 'pill'.shape", "length", ">= 0"]),
     ("unknown shape type", lambda d: d["objects"][0]["shape"].update(type="cone"), ["objects[0] 'ball'", "unknown shape type 'cone'", "box, sphere, cylinder, capsule, mesh"]),
     ("typo in body key", lambda d: d["objects"][0].update(shpe={}), ["objects[0] 'ball'", "unknown key 'shpe'", "did you mean 'shape'", "valid keys"]),
     ("typo in shape key", lambda d: d["objects"][0]["shape"].update(raduis=1), ["objects[0] 'ball'.shape", "unknown key 'raduis'", "radius"]),
@@ -233,3 +234,9 @@ def test_exponents_without_a_decimal_point_are_numbers(tmp_path):
                     "     shape: {type: box, size: [1e-2, 2E-2, 0.5]}}\n")
     (chip,) = load_scene(path).obstacles
     assert chip.T_world_body[2, 3] == 1e-05 and chip.geometries[0].shape.size == (0.01, 0.02, 0.5)
+
+
+def test_a_capsule_of_length_zero_is_a_ball(tmp_path):
+    data = {"objects": [{"name": "pill", "shape": {"type": "capsule", "radius": 0.02, "length": 0}}]}
+    (pill,) = load_scene(_write(tmp_path, data)).objects
+    assert pill.geometries[0].shape == Capsule(0.02, 0.0)

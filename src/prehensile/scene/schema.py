@@ -15,7 +15,7 @@ Shape mapping (``type`` plus the fields of that type, sizes in m, all > 0)::
     {type: box, size: [x, y, z]}                  # full side lengths
     {type: sphere, radius: r}
     {type: cylinder, radius: r, length: l}        # axis along z, centred
-    {type: capsule, radius: r, length: l}         # l = length of the cylindrical part
+    {type: capsule, radius: r, length: l}         # l = length of the cylindrical part (0: a ball)
     {type: mesh, file: path, scale: s or [sx, sy, sz]}   # path relative to the scene file
     pose: {...}                                   # optional: shape pose in the body frame
     name: "..."                                   # optional
@@ -152,7 +152,9 @@ def read_shape(entry: Any, base_dir: Path, where: str) -> Geometry:
         shape = Sphere(number(entry["radius"], f"{w}.radius", positive=True))
     elif kind in ("cylinder", "capsule"):
         radius = number(entry["radius"], f"{w}.radius", positive=True)
-        length = number(entry["length"], f"{w}.length", positive=True)
+        length = number(entry["length"], f"{w}.length", positive=kind == "cylinder")
+        if length < 0:  # a capsule of length 0 is a ball
+            raise SceneError(f"{w}.length: must be >= 0, got {length}")
         shape = Cylinder(radius, length) if kind == "cylinder" else Capsule(radius, length)
     else:
         shape = _read_mesh(entry, base_dir, w)
