@@ -147,6 +147,7 @@ def test_padded_mbm_spheres_cover_meshes_and_raw_ones_do_not(panda):
     assert padded.n_spheres >= raw.n_spheres
     assert np.all(padded.radii[: raw.n_spheres] >= 0)
     assert_covers(panda, padded, rng)
+    assert padded.covering and pad_sphere_model(padded, panda) is padded  # nothing left to cover
 
 
 def test_cache_round_trip(tmp_path, monkeypatch):

@@ -222,13 +222,16 @@ def pad_sphere_model(
     give radii up to ``extra_radius`` m, trying 1, 2, 4, 8, 16). Primitive
     geometries get their exact covers added. Links with geometry
     but no balls get generated balls (:func:`generate_sphere_model`). Afterwards every triangle
-    lies in one ball, so the union covers the geometry.
+    lies in one ball, so the union covers the geometry. A model that covers already
+    (``spheres.covering``, e.g. a generated one) comes back as it is.
     """
     if tuple(spheres.link_names) != tuple(model.link_names):
         raise ModelError("pad_sphere_model: the sphere model belongs to a different link list")
     _check_positive("pad_sphere_model", max_edge=max_edge, extra_radius=extra_radius)
     if not max_growth >= 0:
         raise ModelError(f"pad_sphere_model: max_growth must be >= 0 (m), got {max_growth}")
+    if spheres.covering:
+        return spheres
     params = {"kind": "pad", "max_edge": float(max_edge), "max_growth": float(max_growth),
               "extra_radius": float(extra_radius), "spheres": sphere_cache.array_digest(spheres.arrays())}
 
