@@ -15,6 +15,8 @@ MoveIt conventions and how they are mapped:
   sphere ``[radius]``, cylinder ``[height, radius]`` (note the order: height first), cone
   ``[height, radius]``. A cone becomes a **conservative cylinder** of the same height and base
   radius (it encloses the cone), logged at warning level. Prisms and planes are rejected.
+- The scene's ``allowed_collision_matrix`` is not read: the robot's own SRDF (disabled
+  collision pairs) decides which of its link pairs are checked.
 - Meshes (``vertices`` / ``triangles``) become in-memory :class:`~prehensile.model.geometry.Mesh`
   shapes (``Mesh.from_arrays``, no file).
 - ``robot_state`` (joint values and the ``virtual_joint`` base transform) is applied only when
