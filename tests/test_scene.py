@@ -157,7 +157,7 @@ def test_missing_and_malformed_files(tmp_path):
     assert load_scene(_write(tmp_path, {}, "empty.yaml")).bodies == ()
     moveit = tmp_path / "moveit.yaml"
     moveit.write_text("name: scene\nworld: {collision_objects: []}\n")
-    with pytest.raises(SceneError, match="moveit.yaml: a MoveIt PlanningScene, not a prehensile scene file; read it with"):
+    with pytest.raises(SceneError, match="moveit.yaml: a MoveIt PlanningScene, not a prehensile scene file"):
         load_scene(moveit)
     (tmp_path / "garbage.stl").write_text("not a mesh")
     scene = {"obstacles": [{"name": "g", "shape": {"type": "mesh", "file": "garbage.stl"}}]}
