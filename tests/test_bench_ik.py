@@ -110,3 +110,14 @@ def test_peers_refuse_chains_with_mimic_joints():
                                      "--peers", peer])
         assert result.exit_code == 2
         assert "RHipYawPitch (follows LHipYawPitch)" in " ".join(result.stderr.split())
+
+
+def test_a_peer_that_is_not_installed_is_bad_input_with_the_install_hint(monkeypatch):
+    import importlib.util
+
+    find_spec = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "ikpy" else find_spec(name, *a))
+    result = runner.invoke(app, ["bench", "ik", "--robot", "panda", "--base", "panda_link0", "--tip", "panda_hand_tcp",
+                                 "--n", "5", "--peers", "ikpy"])
+    assert result.exit_code == 2
+    assert "peer ikpy is not installed: pip install 'prehensile[bench]'" in " ".join(result.stderr.split())

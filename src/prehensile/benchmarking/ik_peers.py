@@ -30,6 +30,7 @@ least squares, one start, no time limit; ikpy has neither restarts nor a budget)
 
 from __future__ import annotations
 
+import importlib.util
 import math
 import time
 
@@ -235,6 +236,9 @@ def make_peer(name: str, model: RobotModel, chain: Chain, q_start: np.ndarray, p
         raise PrehensileError(f"peer {name}: the chain {chain.base_link} -> {chain.tip_link} has mimic joints "
                               f"{', '.join(mimics)}, which the peer loads as independent joints; leave it out "
                               "(--peers) or pick a chain without them")
+    if importlib.util.find_spec(name) is None:  # each peer's module has its name
+        raise PrehensileError(f"peer {name} is not installed: pip install 'prehensile[bench]' (or leave it out: "
+                              "--peers none)")
     if name == "pinocchio":
         return PinocchioDLS(model, chain, q_start, position_tolerance, rotation_tolerance)
     if name == "ikpy":

@@ -8,6 +8,7 @@ import sys
 
 import typer
 from rich.console import Console
+from rich.markup import escape
 
 from prehensile.errors import PrehensileError
 
@@ -34,7 +35,7 @@ def handles_errors(command):
         try:
             return command(*args, **kwargs)
         except PrehensileError as err:
-            err_console.print(f"[bold red]error:[/] [red]{err}[/]", soft_wrap=True, markup=True)
+            err_console.print(f"[bold red]error:[/] [red]{escape(str(err))}[/]", soft_wrap=True, markup=True)
             raise typer.Exit(EXIT_BAD_INPUT) from None
         except typer.Exit:
             raise

@@ -1,6 +1,6 @@
 """``prehensile ik``: solve one IK query of a chain from the command line.
 
-Exit codes: 0 solved, 1 no solution (the status is printed), 2 bad input.
+Exit codes: 0 solved, 1 no solution (the status is printed), 2 bad input, 3 a bug.
 """
 
 from __future__ import annotations
@@ -115,7 +115,7 @@ def ik(
     as_json: bool = typer.Option(False, "--json", help="Print JSON instead of tables."),
 ) -> None:
     """Inverse kinematics of one chain from the neutral configuration (Jacobian methods restart
-    randomly within the budget). Exit code 0 solved, 1 no solution, 2 bad input."""
+    randomly within the budget). Exit code 0 solved, 1 no solution, 2 bad input, 3 a bug."""
     if ctx.args and not target:
         raise PrehensileError(f"unexpected arguments {' '.join(ctx.args)}; give the target after --target")
     from prehensile.cli.robot import load_robot

@@ -119,7 +119,7 @@ def check(
 ) -> None:
     """Check every robot of a scene at its configuration: self-collisions and robot vs world.
 
-    Exit code 0 when collision-free, 1 when something collides, 2 on bad input.
+    Exit code 0 when collision-free, 1 when something collides, 2 on bad input, 3 on a bug.
     """
     from prehensile.cli.plan_cmd import scene_path
     from prehensile.scene import check_scene, load_scene

@@ -16,7 +16,7 @@ limits used and the values of the joints not planned) and always ``plan.png`` (t
 the start, a few waypoints and the goal). A failed plan removes the ``trajectory.json`` of an
 earlier one. Exit codes: 0 path
 found, 1 no path (the status says why, e.g. ``invalid_goal`` for a goal in collision), 2 bad
-input.
+input, 3 a bug.
 """
 
 from __future__ import annotations
@@ -241,7 +241,7 @@ def plan(
     out: Path = typer.Option(Path("prehensile-plan"), "--out", help="Folder for path.json, trajectory.json, plan.png."),
 ) -> None:
     """Plan from the robot's scene configuration to a goal configuration or tool pose; exit 0
-    found, 1 no path, 2 bad input."""
+    found, 1 no path, 2 bad input, 3 a bug."""
     from prehensile.collision.spheres import generate_sphere_model
     from prehensile.planning import PlanningContext, RRTConnectSettings, rrt_connect
     from prehensile.scene.check import robot_obstacles
