@@ -55,6 +55,7 @@ def test_an_mjcf_robot_takes_the_srdf_beside_it_or_the_one_given(tmp_path):
     chains = [json.loads(_run("robot", "info", xml, *extra, "--json").stdout)["chains"][0]
               for extra in ([], ["--srdf", tmp_path / "wrist.srdf"])]
     assert [(c["name"], len(c["joints"])) for c in chains] == [("arm", 7), ("wrist", 4)]
+    assert json.loads(_run("robot", "info", xml, "--json").stdout)["srdf"] == str(tmp_path / "arm.srdf")
     solved = _run("ik", xml, "--srdf", tmp_path / "wrist.srdf", "--chain", "wrist", "--target", "0.1", "0.0", "0.3")
     assert solved.exit_code in (0, 1) and "wrist" in solved.stdout
 

@@ -46,7 +46,7 @@ def robot_info(
     if as_json:
         echo_json(info)
         return
-    console.print(f"[bold]{info['name']}[/]  ({info['source']})")
+    console.print(f"[bold]{info['name']}[/]  ({info['source']}; SRDF: {info['srdf'] or 'none'})")
     console.print(f"dof: {info['dof']}   links: {info['n_links']}   root: {info['root_link']}")
     joints = Table("#", "joint", "type", "lower", "upper", "lower (deg)", "upper (deg)", "velocity", title="joints")
     for j in info["joints"]:

@@ -57,11 +57,12 @@ def mimic_rows(model: RobotModel) -> list[dict[str, Any]]:
 
 
 def robot_info(model: RobotModel) -> dict[str, Any]:
-    """A JSON-ready description: dof, links, joints, mimic joints, chains, end effectors with
-    preshapes."""
+    """A JSON-ready description: source files (``srdf`` None if none was applied), dof, links,
+    joints, mimic joints, chains, end effectors with preshapes."""
     return {
         "name": model.name,
         "source": model.source,
+        "srdf": model.srdf_source,
         "dof": model.dof,
         "n_links": model.n_links,
         "root_link": model.link_names[0],
