@@ -59,6 +59,9 @@ def test_same_seed_same_result_and_bad_arguments(armar):
         solve_ik_hybrid([left, right], targets[:1])
     with pytest.raises(PrehensileError, match="overlap"):
         solve_ik_hybrid([left], targets[:1], free=["Shoulder_1_L"])
+    torso_arms = [ChainSolver(model, "TorsoLeftArm"), ChainSolver(model, "TorsoRightArm")]  # solving one moves both
+    with pytest.raises(PrehensileError, match="'TorsoLeftArm' and 'TorsoRightArm' share Hip_Pitch"):
+        solve_ik_hybrid(torso_arms, targets)
     far = np.eye(4)
     far[:3, 3] = [0.0, 0.0, 9.0]
     timeout = solve_ik_hybrid([left], [far], "Torso", rng=0, settings=HybridIKSettings(time_budget_s=0.02))

@@ -226,3 +226,23 @@ def test_bad_settings_and_chains_raise():
         ChainSolver(model, "leg")
     with pytest.raises(PrehensileError):
         ChainSolver(model, base="panda_hand", tip="panda_link3")
+
+
+def test_a_continuous_joint_is_solved_past_pi_and_a_seed_outside_the_limits_is_clipped():
+    """Continuous joints have no limits (the solver used to clamp them to [-pi, pi]); a seed
+    beyond a finite limit starts inside it, so no solution lies outside the limits."""
+    from prehensile.model.builder import JointSpec, LinkSpec, build_model
+
+    links = [LinkSpec("base"), LinkSpec("turn"), LinkSpec("arm"), LinkSpec("tip")]
+    joints = [JointSpec("spin", "continuous", "base", "turn", np.eye(4), [0, 0, 1.0]),
+              JointSpec("lift", "revolute", "turn", "arm", make_pose(position=[0.3, 0, 0]), [0, 1.0, 0], -1.0, 1.0),
+              JointSpec("tool", "fixed", "arm", "tip", make_pose(position=[0.2, 0, 0]))]
+    model = build_model("spinner", "test", links, joints)
+    solver = ChainSolver(model, base="base", tip="tip")
+    for seed, goal in (([3.0, 0.2], [3.3, 0.2]), ([5.0, 0.2], [5.05, 0.25])):
+        result = solver.solve(solver.tool_pose(np.array(goal)), np.array(seed))
+        assert result.success and abs(result.q[0] - goal[0]) < 1e-3, result
+    beyond = np.array([0.0, 1.5])  # lift's limit is 1: only configurations outside the limits reach this pose
+    result = solve_ik_complete(solver, solver.tool_pose(beyond), beyond, rng=0,
+                               settings=CompleteIKSettings(max_restarts=8))
+    assert not result.success and model.within_limits(result.q)

@@ -62,12 +62,12 @@ class HandPair:
         """(n,) q index of each joint column."""
         self.var_of_q = np.full(a.model.dof, -1, dtype=np.int64)
         self.var_of_q[self.var_q] = np.arange(len(self.var_q))
-        lower, upper = a.model.lower[self.var_q], a.model.upper[self.var_q]
-        self.lower = np.where(np.isfinite(lower), lower, -np.pi)
-        self.upper = np.where(np.isfinite(upper), upper, np.pi)
+        self.lower, self.upper = a.model.sampling_limits(self.var_q)
+        """(n,) range of random seeds; solutions keep the model's limits (none if continuous)."""
         s = self.settings
+        limits = [np.ascontiguousarray(bound[self.var_q]) for bound in (a.model.lower, a.model.upper)]
         self._kernel_args = (a.table, b.table, self.var_of_q, self.var_q, a.T_world_root,
-                             np.ascontiguousarray([a.T_tip_tcp, b.T_tip_tcp]), self.lower, self.upper)
+                             np.ascontiguousarray([a.T_tip_tcp, b.T_tip_tcp]), *limits)
         self._step_args = (s.max_step_position, s.max_step_rotation, METHODS[s.method], s.damping)
 
     def poses(self, q: np.ndarray) -> np.ndarray:

@@ -74,12 +74,19 @@ def solve_ik_hybrid(arms: Sequence[ChainSolver], targets: Sequence[np.ndarray], 
     """
     if len(arms) != len(targets) or not arms:
         raise PrehensileError(f"solve_ik_hybrid: {len(arms)} arms but {len(targets)} targets")
+    for i, a in enumerate(arms):  # solving one arm after another must not move the ones solved
+        for b in arms[i + 1:]:
+            shared = np.intersect1d(a.var_q, b.var_q)
+            if shared.size:
+                raise PrehensileError(f"solve_ik_hybrid: arm chains '{a.chain.name}' and '{b.chain.name}' share "
+                                      f"{', '.join(a.model.joint_names[j] for j in shared)}; give those as free "
+                                      "joints and chains without them")
     start = clock()
     model = arms[0].model
     rng = np.random.default_rng(rng)
     poses = [arm.targets(t) for arm, t in zip(arms, targets)]
     free_q = free_joint_indices(model, arms, free)
-    lower, upper = model.lower[free_q], model.upper[free_q]
+    lower, upper = model.sampling_limits(free_q)
     q = arms[0].seed(q_seed)
     samples, iterations, best = 0, 0, (np.inf, np.inf)
     while True:

@@ -126,8 +126,10 @@ class ChainSolver:
             raise PrehensileError(f"chain '{spec.name}' of robot '{model.name}' has no actuated joints")
         self.var_of_q = np.full(model.dof, -1, dtype=np.int64)
         self.var_of_q[self.var_q] = np.arange(len(self.var_q))
-        self.lower = np.where(np.isfinite(model.lower[self.var_q]), model.lower[self.var_q], -np.pi)
-        self.upper = np.where(np.isfinite(model.upper[self.var_q]), model.upper[self.var_q], np.pi)
+        self.lower, self.upper = model.sampling_limits(self.var_q)
+        """(n,) range of random seeds (:meth:`RobotModel.sampling_limits`); solutions keep the
+        model's limits (none for a continuous joint)."""
+        self._limits = (np.ascontiguousarray(model.lower[self.var_q]), np.ascontiguousarray(model.upper[self.var_q]))
         self.T_tip_tcp = np.eye(4) if T_tip_tcp is None else check_target_poses(T_tip_tcp, "T_tip_tcp")[0]
         self.T_world_root = np.eye(4) if T_world_root is None else check_target_poses(T_world_root, "T_world_root")[0]
         self.rows, self.row_weight = settings.task_rows()
@@ -155,10 +157,13 @@ class ChainSolver:
         return check_target_poses(target)
 
     def seed(self, q_seed: np.ndarray | None) -> np.ndarray:
-        """A full configuration (dof,) to start from; the neutral one if None."""
+        """A full configuration (dof,) to start from, its chain joints clipped into their limits
+        (a seed that reaches the target is then a solution); the neutral one if None."""
         if q_seed is None:
             return self.model.neutral_configuration()
-        return np.ascontiguousarray(self.model.check_configuration(q_seed, "q_seed"), dtype=float).copy()
+        q = np.array(self.model.check_one(q_seed, "q_seed"), dtype=float)
+        q[self.var_q] = np.clip(q[self.var_q], *self._limits)
+        return q
 
     def run(self, q_seed: np.ndarray, seeds: np.ndarray, targets: np.ndarray, first_target: int = 0
             ) -> tuple[np.ndarray, int, int, int, float, float]:
@@ -173,7 +178,7 @@ class ChainSolver:
         q = np.empty(self.model.dof)
         attempt, index, iterations, pos_err, rot_err = kernels.solve_restarts(
             q, q_seed, seeds, targets, self.T_world_root, self.table, self.var_of_q, self.var_q, self.T_tip_tcp,
-            self.lower, self.upper, self.rows, self.row_weight, s.position_tolerance,
+            *self._limits, self.rows, self.row_weight, s.position_tolerance,
             s.rotation_tolerance if not s.position_only else np.inf, s.iteration_cap, METHODS[s.method],
             s.max_step_position, s.max_step_rotation, s.damping, s.gain, s.stall_cap, first_target)
         return q, attempt, index, iterations, pos_err, rot_err

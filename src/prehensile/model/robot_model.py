@@ -204,14 +204,19 @@ class RobotModel:
         """Zero clipped into the limits, shape (dof,)."""
         return np.clip(np.zeros(self.dof), self.lower, self.upper)
 
+    def sampling_limits(self, indices: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """(lower, upper) (n,) of uniform samples of the variables ``indices`` (all if None):
+        the limits, and [-pi, pi] for a continuous joint (rad or m)."""
+        lower, upper = (self.lower, self.upper) if indices is None else (self.lower[indices], self.upper[indices])
+        return np.where(np.isfinite(lower), lower, -np.pi), np.where(np.isfinite(upper), upper, np.pi)
+
     def random_configurations(self, rng: np.random.Generator | int, n: int | None = None) -> np.ndarray:
-        """Uniform samples within the limits; continuous joints in [-pi, pi].
+        """Uniform samples within :meth:`sampling_limits`.
 
         Returns shape (dof,) when ``n`` is None, else (n, dof).
         """
         rng = np.random.default_rng(rng)
-        lo = np.where(np.isfinite(self.lower), self.lower, -np.pi)
-        hi = np.where(np.isfinite(self.upper), self.upper, np.pi)
+        lo, hi = self.sampling_limits()
         size = (self.dof,) if n is None else (n, self.dof)
         return rng.uniform(lo, hi, size=size)
 
