@@ -14,7 +14,7 @@ from prehensile.ik.result import IKStatus
 from prehensile.kinematics import forward_kinematics
 from prehensile.model.builder import JointSpec, LinkSpec, build_model
 from prehensile.model.robot_model import Chain, RobotModel
-from prehensile.spatial.transforms import axis_angle_to_matrix
+from prehensile.spatial.transforms import axis_angle_to_matrix, make_pose
 
 
 def chain_targets(model, chain: str, n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
@@ -215,3 +215,16 @@ def test_prismatic_chain_rejected():
     model = build_model("lift", "<test>", links, joints, [Chain("all", "base", "arm", ())])
     with pytest.raises(PrehensileError, match="prismatic"):
         fabrik(model, "all", [0.0, 0.0, 0.1])
+
+
+def test_chain_with_a_mimic_joint_rejected():
+    """A follower moves with its leader while the fit holds it rigid: FABRIK solved 0 of 100."""
+    links = [LinkSpec("base"), LinkSpec("upper"), LinkSpec("lower"), LinkSpec("tip")]
+    z = np.array([0.0, 0.0, 1.0])
+    joints = [JointSpec("shoulder", "revolute", "base", "upper", np.eye(4), z, -2.0, 2.0),
+              JointSpec("elbow", "revolute", "upper", "lower", make_pose(position=[0.3, 0, 0]), z, -2.0, 2.0,
+                        mimic=("shoulder", -2.0, 0.0)),
+              JointSpec("tool", "fixed", "lower", "tip", make_pose(position=[0.2, 0, 0]))]
+    model = build_model("folding", "<test>", links, joints, [Chain("all", "base", "tip", ())])
+    with pytest.raises(PrehensileError, match="mimic joint 'elbow' \\(follows shoulder\\)"):
+        fabrik(model, "all", [0.3, 0.1, 0.0])

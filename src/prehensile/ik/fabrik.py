@@ -34,8 +34,8 @@ of ``R^T R_tip``.
 
 Reachability (AL11's first test): the tip stays in the shell ``max(0, 2 max(d) - sum(d)) <=
 |t - p_0| <= sum(d)`` (with R, so does the pinned point for the segments before it); outside it
-a target is UNREACHABLE and the iterations stretch the chain toward it. Prismatic joints are
-not supported; mimic joints follow their leader (the fit ignores their motion).
+a target is UNREACHABLE and the iterations stretch the chain toward it. Prismatic joints and
+mimic joints on the chain (they would move while the fit holds them rigid) are refused.
 """
 
 from __future__ import annotations
@@ -336,8 +336,12 @@ def _pack(model: RobotModel, chain: str) -> tuple[int, np.ndarray, np.ndarray, n
     rows, q_index = [], []
     for row, link in enumerate(path):
         qi = int(model.joint_q_index[link])
-        if qi not in solved or qi in q_index:
-            continue  # held at the seed's value, or a mimic follower of a solved joint
+        if qi not in solved:
+            continue  # held at the seed's value
+        if model.mimic_of(link) is not None:  # the fit would place it as if it stayed rigid
+            raise PrehensileError(f"fabrik: chain '{chain}' of robot '{model.name}' has mimic joint "
+                                  f"'{model.link_joint_names[link]}' (follows {model.mimic_of(link)}), which FABRIK "
+                                  "cannot follow; use a Jacobian method")
         if model.joint_type[link] == PRISMATIC:
             raise PrehensileError(f"fabrik: chain '{chain}' of robot '{model.name}' has prismatic joint "
                                   f"'{model.joint_names[qi]}'; FABRIK here solves revolute joints only")
