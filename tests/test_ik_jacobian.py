@@ -220,6 +220,17 @@ def test_bad_settings_and_chains_raise():
     model = robots.load("panda")
     with pytest.raises(PrehensileError, match="dls"):
         JacobianIKSettings(method="newton")
+    for bad, message in [({"damping": -1.0}, "damping must be >= 0"), ({"damping": np.nan}, "damping"),
+                         ({"max_iterations": -5}, "max_iterations must be >= 1"),
+                         ({"stall_iterations": 0}, "stall_iterations must be >= 1"),
+                         ({"position_tolerance": np.inf}, "position_tolerance must be positive and finite")]:
+        with pytest.raises(PrehensileError, match=message):
+            JacobianIKSettings(**bad)
+    with pytest.raises(PrehensileError, match="max_restarts >= 0"):
+        CompleteIKSettings(max_restarts=-1)
+    with pytest.raises(PrehensileError, match=r"q_seed: expected one configuration \(8,\)"):
+        ChainSolver(model, "arm").solve(ChainSolver(model, "arm").tool_pose(model.neutral_configuration()),
+                                        np.zeros((2, 8)))
     with pytest.raises(PrehensileError, match="position_only"):
         ChainSolver(model, "arm").solve(np.zeros(3))
     with pytest.raises(KeyError):

@@ -46,8 +46,9 @@ class CompleteIKSettings:
     max_restarts: int | None = None
 
     def __post_init__(self) -> None:
-        if not self.time_budget_s > 0 or self.batch < 1:
-            raise PrehensileError(f"CompleteIKSettings: need time_budget_s > 0 and batch >= 1, got {self}")
+        if not self.time_budget_s > 0 or self.batch < 1 or (self.max_restarts is not None and self.max_restarts < 0):
+            raise PrehensileError(f"CompleteIKSettings: need time_budget_s > 0, batch >= 1 and max_restarts >= 0 "
+                                  f"or None, got {self}")
 
 
 def solve_ik_complete(solver: ChainSolver, target: np.ndarray, q_seed: np.ndarray | None = None,

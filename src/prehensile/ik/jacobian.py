@@ -76,8 +76,13 @@ class JacobianIKSettings:
         if len(self.weights) != 6 or any(w < 0 or not np.isfinite(w) for w in self.weights):
             raise PrehensileError(f"IK weights: expected 6 finite non-negative numbers, got {self.weights}")
         for name in ("position_tolerance", "rotation_tolerance", "max_step_position", "max_step_rotation", "gain"):
-            if not getattr(self, name) > 0:
-                raise PrehensileError(f"IK setting {name} must be positive, got {getattr(self, name)}")
+            if not 0 < getattr(self, name) < np.inf:
+                raise PrehensileError(f"IK setting {name} must be positive and finite, got {getattr(self, name)}")
+        if not 0 <= self.damping < np.inf:
+            raise PrehensileError(f"IK setting damping must be >= 0 and finite (m), got {self.damping}")
+        for name in ("max_iterations", "stall_iterations"):
+            if getattr(self, name) is not None and not getattr(self, name) >= 1:
+                raise PrehensileError(f"IK setting {name} must be >= 1 or None, got {getattr(self, name)}")
 
     @property
     def iteration_cap(self) -> int:
