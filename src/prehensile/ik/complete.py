@@ -11,7 +11,8 @@ Choices (the thesis leaves them open):
   final configuration is checked (intermediate configurations are not part of any motion),
   first against the sphere model (fast, conservative) and then, if given, the exact meshes.
 - Seeds are drawn and solved in batches inside one compiled call (``batch`` seeds per call;
-  the clock is read between calls).
+  the clock is read between calls, so a budget can be overrun by one call: up to ``batch``
+  solves of ``max_iterations`` each, milliseconds for the transpose method).
 - A pose set (e.g. the grasps of an object: any one will do) is tried pose by pose from the
   caller's seed, beginning with the pose nearest to the seed's tool (a seed already at a pose
   is its own solution), then a random pose per random seed.
@@ -77,22 +78,24 @@ def solve_ik_complete(solver: ChainSolver, target: np.ndarray, q_seed: np.ndarra
     first_target, restarts, iterations, random_round = _nearest_target(solver, q0, targets), 0, 0, False
     closest = (np.inf, q0, np.inf, np.inf, 0)  # miss, q, position and rotation errors, target index
     while True:
-        q, attempt, index, its, pos_err, rot_err = solver.run(q0, seeds, targets, first_target)
+        chunk = seeds[:settings.batch]  # the clock is read between calls of at most ``batch`` solves
+        q, attempt, index, its, pos_err, rot_err = solver.run(q0, chunk, targets, first_target)
         iterations += its
         miss = solver.miss(pos_err, rot_err)
         if miss < closest[0]:  # a converged one that ``is_valid`` rejects counts too
             closest = (miss, q, pos_err, rot_err, index)
+        done = len(chunk) if attempt < 0 else attempt + 1
         if random_round:
-            restarts += len(seeds) if attempt < 0 else attempt + 1
+            restarts += done
         if attempt >= 0 and (is_valid is None or is_valid(q)):
             return _result(solver, IKStatus.SUCCESS, q, pos_err, rot_err, index, iterations, start, restarts)
-        if attempt >= 0 and attempt + 1 < len(seeds):  # converged but rejected: go on with the rest
-            seeds, first_target = seeds[attempt + 1:], (first_target + attempt + 1) % len(targets)
-            continue
-        if settings.max_restarts is not None and restarts >= settings.max_restarts:
+        seeds, first_target = seeds[done:], (first_target + done) % len(targets)  # the rest of the round
+        if not len(seeds) and settings.max_restarts is not None and restarts >= settings.max_restarts:
             return _result(solver, IKStatus.NOT_CONVERGED, *closest[1:], iterations, start, restarts)
         if clock() - start >= settings.time_budget_s:
             return _result(solver, IKStatus.TIMEOUT, *closest[1:], iterations, start, restarts)
+        if len(seeds):
+            continue
         if not isinstance(rng, np.random.Generator):  # created only when needed: it costs ~20 us
             rng = np.random.default_rng(rng)
         n = settings.batch if settings.max_restarts is None else min(settings.batch, settings.max_restarts - restarts)
