@@ -121,3 +121,23 @@ def test_a_peer_that_is_not_installed_is_bad_input_with_the_install_hint(monkeyp
                                  "--n", "5", "--peers", "ikpy"])
     assert result.exit_code == 2
     assert "peer ikpy is not installed: pip install 'prehensile[bench]'" in " ".join(result.stderr.split())
+
+
+def test_the_ikpy_peer_takes_a_urdf_axis_that_is_not_unit_length(tmp_path):
+    """ikpy scales a joint's motion by its axis length; ours and pinocchio normalise it."""
+    pytest.importorskip("ikpy")
+    from prehensile.benchmarking.ik_peers import IkpyPeer
+    from prehensile.kinematics import link_pose
+    from prehensile.model.builder import resolve_chain
+    from prehensile.model.robot_model import Chain
+
+    urdf = tmp_path / "tilt.urdf"
+    urdf.write_text('<robot name="tilt"><link name="base"/><link name="arm"/><link name="tip"/>'
+                    '<joint name="j1" type="revolute"><parent link="base"/><child link="arm"/><axis xyz="0 1 1"/>'
+                    '<limit lower="-2" upper="2" effort="1" velocity="1"/></joint>'
+                    '<joint name="j2" type="revolute"><parent link="arm"/><child link="tip"/><origin xyz="0.3 0 0"/>'
+                    '<axis xyz="0 0 2"/><limit lower="-2" upper="2" effort="1" velocity="1"/></joint></robot>')
+    model = robots.load(urdf)
+    q = np.array([0.7, -0.4])
+    peer = IkpyPeer(model, resolve_chain(model, Chain("base->tip", "base", "tip", ())), q)
+    np.testing.assert_allclose(peer.chain.forward_kinematics(peer.initial), link_pose(model, q, "tip"), atol=1e-12)

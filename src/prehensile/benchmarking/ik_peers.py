@@ -201,6 +201,7 @@ class IkpyPeer:
             links = get_urdf_parameters(_urdf(model, self.name), base_elements=elements)[:len(path) - 1]
         except ValueError as err:
             raise PrehensileError(f"peer ikpy: cannot build chain {chain.name} from {model.source}: {err}") from None
+        links = [_unit_axes(link) for link in links]
         if links[-1].joint_type != "fixed":  # ikpy never moves the last link: add a fixed tip
             links.append(type(links[-1])(name="tip", origin_translation=[0, 0, 0], origin_orientation=[0, 0, 0],
                                          rotation=None, translation=None, joint_type="fixed"))
@@ -222,6 +223,18 @@ class IkpyPeer:
         for column, index in self.columns:
             q[index] = solution[column]
         return q, None
+
+
+def _unit_axes(link):
+    """The ikpy link with unit joint axes: a URDF's need not be, and ikpy would scale the
+    motion by their length (it builds its transforms when a link is made, so a new one)."""
+    unit = [None if axis is None else np.asarray(axis, float) / np.linalg.norm(axis)
+            for axis in (link.rotation, link.translation)]
+    if all(axis is None or np.isclose(np.linalg.norm(axis), 1.0) for axis in (link.rotation, link.translation)):
+        return link
+    return type(link)(name=link.name, origin_translation=link.origin_translation,
+                      origin_orientation=link.origin_orientation, rotation=unit[0], translation=unit[1],
+                      bounds=link.bounds, joint_type=link.joint_type)
 
 
 def make_peer(name: str, model: RobotModel, chain: Chain, q_start: np.ndarray, position_tolerance: float,
