@@ -228,10 +228,10 @@ class IkpyPeer:
 def _unit_axes(link):
     """The ikpy link with unit joint axes: a URDF's need not be, and ikpy would scale the
     motion by their length (it builds its transforms when a link is made, so a new one)."""
-    unit = [None if axis is None else np.asarray(axis, float) / np.linalg.norm(axis)
-            for axis in (link.rotation, link.translation)]
-    if all(axis is None or np.isclose(np.linalg.norm(axis), 1.0) for axis in (link.rotation, link.translation)):
+    axes = (link.rotation, link.translation)
+    if all(axis is None or np.isclose(np.linalg.norm(axis), 1.0) for axis in axes):
         return link
+    unit = [None if axis is None else np.asarray(axis, float) / np.linalg.norm(axis) for axis in axes]
     return type(link)(name=link.name, origin_translation=link.origin_translation,
                       origin_orientation=link.origin_orientation, rotation=unit[0], translation=unit[1],
                       bounds=link.bounds, joint_type=link.joint_type)
