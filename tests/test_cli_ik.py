@@ -84,6 +84,7 @@ def test_unknown_chain_exits_2_listing_chains():
 
 @pytest.mark.parametrize("extra, message", [
     (["--target", 0.1, 0.2], "expected 3 values"),
+    ([], "or 6 (x y z roll pitch yaw; m, rad), got none"),
     (["--target", 0.1, 0.2, "nan"], "NaN"),
     (["--target", 0.1, 0.2, "x"], "expected numbers"),
     (["--target", 0.1, 0.2, 0.3, "--method", "magic"], "pinv, dls, fabrik, analytic"),

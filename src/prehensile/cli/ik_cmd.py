@@ -29,8 +29,8 @@ EXIT_SOLVED, EXIT_NO_SOLUTION = 0, 1
 def parse_target(values: List[str]) -> np.ndarray:
     """A position (3,) from ``x y z`` (m) or a pose (4, 4) from ``x y z roll pitch yaw`` (m, rad)."""
     if len(values) not in (3, 6):
-        raise PrehensileError(f"--target: expected 3 values (x y z, m) or 6 (x y z roll pitch yaw; m, rad), "
-                              f"got {len(values)}: {' '.join(values)}")
+        got = f"got {len(values)}: {' '.join(values)}" if values else "got none"
+        raise PrehensileError(f"--target: expected 3 values (x y z, m) or 6 (x y z roll pitch yaw; m, rad), {got}")
     try:
         numbers = np.array([float(v) for v in values])
     except ValueError:
