@@ -109,8 +109,11 @@ def test_base_pose_moves_every_link(erd):
                      lambda: frame_jacobian(model, q, link, T_world_base=bad)):
             with pytest.raises(PrehensileError, match="T_world_base: " + message):
                 call()
-    with pytest.raises(PrehensileError, match="T_link_frame: expected shape"):
-        frame_jacobian(model, q, link, T_link_frame=np.eye(3))
+    for call in (frame_jacobian, link_pose):
+        with pytest.raises(PrehensileError, match="T_link_frame: expected shape"):
+            call(model, q, link, T_link_frame=np.eye(3))
+    with pytest.raises(PrehensileError, match="T_link_frame: upper-left 3x3 block is not a rotation"):
+        link_pose(model, q, link, T_link_frame=np.diag([2.0, 2.0, 2.0, 1.0]))
 
 
 def test_bad_configurations_are_clear_errors(erd):
@@ -119,7 +122,7 @@ def test_bad_configurations_are_clear_errors(erd):
         forward_kinematics(model, np.zeros(model.dof + 1))
     q = np.zeros((3, model.dof))
     q[2, 0] = np.nan
-    with pytest.raises(PrehensileError, match="NaN"):
+    with pytest.raises(PrehensileError, match=r"NaN or infinite values at batch index \(2,\)$"):
         forward_kinematics(model, q)
     with pytest.raises(PrehensileError, match="NaN"):
         forward_kinematics(model, q[2])

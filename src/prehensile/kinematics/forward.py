@@ -29,7 +29,7 @@ def _flat(model: RobotModel, q) -> tuple[np.ndarray, tuple[int, ...]]:
 
 
 def _non_finite(row: int, batch: tuple[int, ...]) -> PrehensileError:
-    where = f" at batch index {np.unravel_index(row, batch)}" if batch else ""
+    where = f" at batch index {tuple(int(i) for i in np.unravel_index(row, batch))}" if batch else ""
     return PrehensileError(f"q contains NaN or infinite values{where}")
 
 
@@ -60,7 +60,7 @@ def link_pose(model: RobotModel, q: np.ndarray, link: str, T_link_frame: np.ndar
               T_world_base: np.ndarray | None = None) -> np.ndarray:
     """Pose (*batch, 4, 4) of ``link``, times ``T_link_frame`` (4, 4) if given (e.g. a tool offset)."""
     pose = forward_kinematics(model, q, T_world_base)[..., model.link_index(link), :, :]
-    return pose if T_link_frame is None else pose @ T_link_frame
+    return pose if T_link_frame is None else pose @ check_one_pose(T_link_frame, "T_link_frame")
 
 
 def frame_jacobian(
