@@ -27,7 +27,7 @@ from prehensile.errors import PrehensileError
 from prehensile.kinematics.forward import forward_kinematics
 from prehensile.model.geometry import Box, Capsule, Cylinder, Geometry, Mesh, Sphere
 from prehensile.model.robot_model import RobotModel
-from prehensile.spatial.transforms import check_pose
+from prehensile.spatial.transforms import check_one_pose
 
 
 def obstacle_arrays(obstacles: Sequence[Obstacle], mesh_boxes: int = 32) -> dict[str, np.ndarray]:
@@ -193,10 +193,8 @@ class SphereChecker:
         if self.acm.shape != (model.n_links, model.n_links):
             raise PrehensileError(f"SphereChecker: acm must be ({model.n_links}, {model.n_links}) for the links of "
                                   f"'{model.name}', got {self.acm.shape}")
-        self.T_world_base = np.eye(4) if T_world_base is None else np.ascontiguousarray(
-            check_pose(T_world_base, "SphereChecker: T_world_base"))
-        if self.T_world_base.shape != (4, 4):
-            raise PrehensileError(f"SphereChecker: T_world_base must be one pose (4, 4), got {self.T_world_base.shape}")
+        self.T_world_base = np.eye(4) if T_world_base is None else check_one_pose(T_world_base,
+                                                                                  "SphereChecker: T_world_base")
         frames, groups = frames_and_groups(model, self.spheres)
         g_link = groups["link"]
         pairs = [(a, b) for a in range(len(g_link)) for b in range(a + 1, len(g_link))

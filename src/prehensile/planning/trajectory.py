@@ -252,11 +252,12 @@ def time_parameterize(path: np.ndarray, velocity_limits: float | np.ndarray, acc
     accepts every chord between spline samples ``blend_step`` apart and the spline is the
     faster motion; otherwise the polyline is used (a warning is logged if the check failed).
     The check must also check joint limits, since the spline may overshoot: for a planning
-    context, ``lambda a, b: ctx.check_motion(ctx.space.full(a), ctx.space.full(b))``. Limits are enforced at
-    the TOPP-RA gridpoints (the spline's knots among them) and checked again between them and
-    at every returned sample; any residual excess (numerical, or between gridpoints) is
-    removed by slowing the whole motion uniformly, so every sample meets the limits (to a
-    relative 1e-9, for rounding).
+    context, ``lambda a, b: ctx.check_motion(ctx.space.full(a), ctx.space.full(b))``.
+
+    Limits are enforced at the TOPP-RA gridpoints (the spline's knots among them) and checked
+    again between them and at every returned sample; any residual excess (numerical, or
+    between gridpoints) is removed by slowing the whole motion uniformly, so every sample
+    meets the limits (to a relative 1e-9, for rounding).
 
     Args:
         path: (N, n) waypoints (rad or m), N >= 1.
