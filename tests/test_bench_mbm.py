@@ -146,22 +146,42 @@ def test_bench_mbm_another_robot_with_generated_balls(tmp_path):
 
 
 
-def test_invalid_start_is_reported_with_its_reason(tmp_path):
+def test_unusable_ends_are_reported_with_their_reason_and_unplanned_joints_clipped(tmp_path, caplog):
     import yaml
 
     folder = tmp_path / "problems" / "shelf_armar3"
     _write_armar_problems(folder)
-    request = yaml.safe_load((folder / "request0001.yaml").read_text())
-    state = request["start_state"]["joint_state"]
-    state["position"][state["name"].index("Elbow_L")] = 5.0  # not planned, but outside its limits
-    (folder / "request0001.yaml").write_text(yaml.safe_dump(request))
+    for k, joint, value in ((1, "Elbow_R", 5.0), (2, "Elbow_L", -2.5)):  # planned; not planned (free at -2.146)
+        request = yaml.safe_load((folder / f"request{k:04d}.yaml").read_text())
+        state = request["start_state"]["joint_state"]
+        state["position"][state["name"].index(joint)] = value  # outside its limits
+        (folder / f"request{k:04d}.yaml").write_text(yaml.safe_dump(request))
     out = tmp_path / "report.json"
-    result = runner.invoke(app, ["bench", "mbm", str(tmp_path / "problems"), "--robot", "armar3", "--budget", "0.5",
-                                 "--json", str(out)])
+    result = runner.invoke(app, ["bench", "mbm", str(tmp_path / "problems"), "--robot", "armar3", "--budget", "1",
+                                 "--limit", "2", "--json", str(out)])
     assert result.exit_code == 0, result.output
-    record = json.loads(out.read_text())["runs"][0]["ours"]
-    assert record["status"] == "invalid_start" and record["reason"].startswith("joint Elbow_L = 5 outside its limits")
-    assert "invalid end (first: shelf_armar3 #1): joint Elbow_L = 5" in " ".join(result.output.split())
+    first, second = (run["ours"] for run in json.loads(out.read_text())["runs"])
+    assert first["status"] == "invalid_start" and first["reason"].startswith("start: joint Elbow_R = 5 outside")
+    assert "invalid_start (first: shelf_armar3 #1): start: joint Elbow_R = 5" in " ".join(result.output.split())
+    assert second["status"] == "success" and "reason" not in second
+    assert "request0002.yaml: start_state: Elbow_L = -2.5 outside the joint limits and not planned" in caplog.text
+
+
+def test_a_timeout_names_the_end_only_the_balls_reject(tmp_path):
+    """A start inside the conservative balls but free on the geometry, with no escape in the budget."""
+    from prehensile.benchmarking.mbm import MBMSettings, PreparedProblem, _record, load_problems
+    from prehensile.collision.spheres import generate_sphere_model
+    from prehensile.planning import PlanResult, PlanStats, PlanStatus
+    from prehensile import robots
+
+    _write_armar_problems(tmp_path / "shelf")
+    model = robots.load("armar3")
+    prepared = PreparedProblem(model, (generate_sphere_model(model), None), load_problems(tmp_path, model, 1)[0],
+                               MBMSettings())
+    prepared.q_start = model.neutral_configuration()  # the hip's balls meet the arms' (exactly free)
+    record = _record(prepared, PlanResult(PlanStatus.TIMEOUT, np.zeros((0, model.dof)), PlanStats()), 1.0,
+                     MBMSettings())
+    assert record["reason"].startswith("start: free on the exact geometry, but the sphere model's conservative balls")
 
 
 @pytest.mark.parametrize("goal, message", [
@@ -181,6 +201,43 @@ def test_bad_goal_exits_2_naming_the_request(tmp_path, goal, message):
     result = runner.invoke(app, ["bench", "mbm", str(tmp_path / "problems"), "--robot", "armar3", "--budget", "0.1"])
     assert result.exit_code == 2, result.output
     assert "request0001.yaml" in result.output and message in " ".join(result.output.split())
+
+def test_every_request_is_checked_before_planning(tmp_path, monkeypatch):
+    import yaml
+
+    from prehensile import robots
+    from prehensile.benchmarking import mbm
+
+    folder = tmp_path / "shelf_armar3"
+    _write_armar_problems(folder)
+    last = sorted(folder.glob("request*.yaml"))[-1]
+    request = yaml.safe_load(last.read_text())
+    request["goal_constraints"][0]["joint_constraints"].pop()
+    last.write_text(yaml.safe_dump(request))
+    monkeypatch.setattr(mbm, "_warm_up", lambda *args: pytest.fail("planning began before every request was checked"))
+    with pytest.raises(PrehensileError, match=f"{last.name}: .*no goal for planned joint"):
+        mbm.run_mbm(tmp_path, robots.load("armar3"), (None, None))
+
+
+def test_a_problem_plans_the_same_in_any_set(tmp_path):
+    import shutil
+
+    from prehensile import robots
+    from prehensile.benchmarking.mbm import load_problems, problem_seed
+
+    model = robots.load("armar3")
+    _write_armar_problems(tmp_path / "all" / "shelf")
+    alone = tmp_path / "alone" / "shelf"
+    alone.mkdir(parents=True)
+    for name in ("scene0002.yaml", "request0002.yaml"):
+        shutil.copy(tmp_path / "all" / "shelf" / name, alone / name)
+    problems = load_problems(tmp_path / "all", model)
+    settings = MBMSettings(seed=4)
+    seeds = [problem_seed(settings, p) for p in problems]
+    assert len({str(s) for s in seeds}) == len(problems) == 2  # one stream per problem
+    assert problem_seed(settings, load_problems(tmp_path / "alone", model)[0]) == seeds[1]
+    assert problem_seed(MBMSettings(seed=5), problems[0]) != seeds[0]
+
 
 def test_bad_problems_path_exits_2(tmp_path):
     result = runner.invoke(app, ["bench", "mbm", str(tmp_path / "missing"), "--robot", "panda"])

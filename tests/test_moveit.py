@@ -139,6 +139,48 @@ def test_scenario_folders_sharing_a_name_stay_apart_and_archives_name_their_top(
     assert [(p.scenario, p.index) for p in iter_mbm_problems(tmp_path / "y.tar.bz2")] == [("y", 1)]
 
 
+def _one_problem(folder: Path) -> None:
+    folder.mkdir(parents=True)
+    (folder / "scene0001.yaml").write_text(yaml.safe_dump({"name": "s", "world": {"collision_objects": []}}))
+    (folder / "request0001.yaml").write_text(yaml.safe_dump(
+        {"group_name": "arm", "goal_constraints": [{"joint_constraints": [{"joint_name": "j", "position": 0}]}]}))
+
+
+def test_archives_skip_other_files_and_name_bad_text_and_damage(tmp_path):
+    _one_problem(tmp_path / "set" / "x")
+    (tmp_path / "set" / "x" / "picture.png").write_bytes(b"\x89PNG\r\n\x1a\n" + bytes(range(256)))
+    with tarfile.open(tmp_path / "set.tar.bz2", "w:bz2") as archive:
+        archive.add(tmp_path / "set" / "x", arcname="x")
+    assert [(p.scenario, p.index) for p in iter_mbm_problems(tmp_path / "set.tar.bz2")] == [("x", 1)]
+    data = (tmp_path / "set.tar.bz2").read_bytes()
+    (tmp_path / "cut.tar.bz2").write_bytes(data[:len(data) // 2])
+    with pytest.raises(SceneError, match="cut.tar.bz2: (damaged or truncated archive|not a folder or a tar archive)"):
+        list(iter_mbm_problems(tmp_path / "cut.tar.bz2"))
+    (tmp_path / "set" / "x" / "scene0001.yaml").write_bytes("name: sc\xe8ne\n".encode("latin-1"))
+    with pytest.raises(SceneError, match="scene0001.yaml: not UTF-8 text"):
+        list(iter_mbm_problems(tmp_path / "set"))
+    with tarfile.open(tmp_path / "latin.tar.bz2", "w:bz2") as archive:
+        archive.add(tmp_path / "set" / "x", arcname="x")
+    with pytest.raises(SceneError, match="latin.tar.bz2:x/scene0001.yaml: not UTF-8 text"):
+        list(iter_mbm_problems(tmp_path / "latin.tar.bz2"))
+
+
+def test_objects_may_sit_in_the_robots_root_frame():
+    """MoveIt scenes often give poses in the robot's root link, placed by robot_state's virtual joint."""
+    from prehensile import robots
+
+    model = robots.load("panda")
+    placed = {"transforms": [{"translation": [1.0, 2.0, 0.5], "rotation": [0, 0, 0, 1]}]}
+    base = {"joint_state": {"name": [], "position": []}, "multi_dof_joint_state": placed}
+    obj = {"id": "x", "header": {"frame_id": model.link_names[0]}, "primitive_poses": [{"position": [0.1, 0, 0]}],
+           "primitives": [{"type": "box", "dimensions": [1, 1, 1]}]}
+    scene = moveit_scene_from_dict({"robot_state": base, "world": {"collision_objects": [obj]}}, "s.yaml", model)
+    body = scene.obstacles[0]
+    np.testing.assert_allclose((body.T_world_body @ body.geometries[0].T_link_geom)[:3, 3], [1.1, 2.0, 0.5])
+    with pytest.raises(SceneError, match=f"frame '{model.link_names[0]}' is not supported"):
+        moveit_scene_from_dict({"world": {"collision_objects": [obj]}}, "s.yaml")  # no robot: no root frame
+
+
 def test_object_pose_composes_with_primitive_poses():
     data = {"world": {"collision_objects": [{
         "id": "crate",
@@ -211,8 +253,11 @@ def test_a_request_without_joint_goals_is_refused():
 
 
 def test_missing_path_is_a_scene_error(tmp_path):
-    with pytest.raises(SceneError, match="not a folder or tar archive"):
+    with pytest.raises(SceneError, match="absent: no such folder or archive"):
         list(iter_mbm_problems(tmp_path / "absent"))
+    (tmp_path / "notes.txt").write_text("not an archive")
+    with pytest.raises(SceneError, match="notes.txt: not a folder or a tar archive"):
+        list(iter_mbm_problems(tmp_path / "notes.txt"))
     with pytest.raises(SceneError, match="file not found"):
         load_moveit_scene(tmp_path / "scene0001.yaml")
 

@@ -388,6 +388,21 @@ def test_path_failing_certification_is_planned_again_on_the_cover(arm):
         PlanningContext(model, slot, spheres=thin, cover=thin)
 
 
+def test_a_start_only_the_thin_balls_let_through_is_an_invalid_start(arm):
+    """The exact l3 touches a small block the thin balls miss: the path fails certification,
+    the covering balls then reject the start, and no escape is certified from an exact contact."""
+    model, spheres = arm
+    thin = SphereModel(spheres.link_names, spheres.sphere_link, spheres.centers, 0.25 * spheres.radii)
+    block = [_box("block", [0.93, 0.035, 0.1], [0.02, 0.02, 0.02])]
+    ctx = PlanningContext(model, block, spheres=thin, cover=spheres)
+    start, goal = np.zeros(3), np.array([1.0, 0.0, 0.0])
+    assert ctx.spheres.is_free(start) and not ctx.exact.is_free(start)
+    result = rrt_connect(ctx, start, goal, FAST)
+    assert result.status is PlanStatus.INVALID_START, result
+    assert not result.info["certify"].ok and "l3" in result.info["refined"]
+    assert ctx.why_invalid(start).startswith("l3 collides with block")
+
+
 def test_refined_contexts_of_two_scenes_share_the_robot_tables_not_the_world(arm):
     """The tables that depend only on the robot and its balls (ball groups, motion weights) are
     built once and shared by the refined contexts of every scene; each still checks its own

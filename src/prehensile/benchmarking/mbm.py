@@ -4,7 +4,8 @@ For each problem the robot is placed by the scene's ``robot_state``, the obstacl
 scene's collision objects, and the planned joints are the request's planning group (a chain of
 the model, e.g. an SRDF group) or, when the model has no such chain, the joints of the
 request's goal constraints. Start and goal come from the request; joints not planned keep their
-start values.
+start values, clipped into their limits (with a warning) as the scene's ``robot_state`` is.
+Every problem is read and its goal checked before the first is planned.
 
 Measured per problem and planner:
 
@@ -28,6 +29,7 @@ from __future__ import annotations
 
 import logging
 import time
+import zlib
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Callable, Sequence
@@ -52,7 +54,8 @@ class MBMSettings:
     Attributes:
         planner: our planner, one of :data:`PLANNERS`.
         time_budget_s: search time limit per problem and planner (s).
-        seed: seed of our planner's generator (per problem: ``seed + problem number``) and of OMPL.
+        seed: seed of our planner's generators (per problem, from the seed, the scenario name and
+            the problem's index, so a problem plans the same in any set) and of OMPL.
         limit: at most this many problems per scenario (0: all).
         compare_ompl: also run OMPL's RRT-Connect on every problem.
         resolution: motion-check spacing (m, workspace-weighted) of both planners.
@@ -111,7 +114,8 @@ def planned_joints(model: RobotModel, problem: MBMProblem) -> list[str]:
         chains = ", ".join(model.chains) or "(none)"
         raise PrehensileError(
             f"{request.source}: planning group '{request.group}' is not a chain of robot '{model.name}' "
-            f"(chains: {chains}; give the SRDF) and no goal joint is a joint of the model")
+            f"(chains: {chains}{'' if model.srdf_source else '; give the SRDF'}) and no goal joint is a joint "
+            "of the model")
     return joints
 
 
@@ -172,8 +176,7 @@ class PreparedProblem:
         self.problem = problem
         joints = planned_joints(model, problem)
         check_goal(model, problem, joints)
-        self.q_start = problem.request.start_configuration(model)
-        self.q_goal = problem.request.goal_configuration(model)
+        self.q_start, self.q_goal = _clip_unplanned(model, problem, joints)
         T_world_base = problem.scene.robots[0].T_world_base if problem.scene.robots else None
         self.ctx = PlanningContext(model, problem.scene.collision_obstacles(), joints=joints,
                                    q_ref=self.q_start, T_world_base=T_world_base, spheres=spheres[0],
@@ -183,10 +186,42 @@ class PreparedProblem:
         _ = self.ctx.certifier
 
 
-def _ours(prepared: PreparedProblem, settings: MBMSettings, seed: int) -> dict:
+def _clip_unplanned(model: RobotModel, problem: MBMProblem, joints: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
+    """The request's (start, goal) (dof,) with the joints not planned clipped into their limits
+    (a warning names them; MBM's requests hold Panda finger values beyond some models' limits)."""
+    q_start = problem.request.start_configuration(model)
+    q_goal = problem.request.goal_configuration(model)
+    fixed = np.array([name not in joints for name in model.joint_names])
+    outside = np.flatnonzero(fixed & ((q_start < model.lower) | (q_start > model.upper)))
+    if len(outside):
+        log.warning("%s: start_state: %s outside the joint limits and not planned, clipped into them",
+                    problem.request.source,
+                    ", ".join(f"{model.joint_names[i]} = {q_start[i]:.6g}" for i in outside))
+        q_start[outside] = q_goal[outside] = np.clip(q_start[outside], model.lower[outside], model.upper[outside])
+    return q_start, q_goal
+
+
+def check_problems(model: RobotModel, problems: Sequence[MBMProblem]) -> None:
+    """Check every problem's planned joints, start and goal before any is planned.
+
+    Raises:
+        PrehensileError: naming the first request at fault (see :func:`check_goal`).
+    """
+    for problem in problems:
+        joints = planned_joints(model, problem)
+        check_goal(model, problem, joints)
+        _clip_unplanned(model, problem, joints)
+
+
+def problem_seed(settings: MBMSettings, problem: MBMProblem) -> list[int]:
+    """Our planner's seed for one problem: the same whichever other problems run with it."""
+    return [settings.seed, zlib.crc32(problem.scenario.encode()), problem.index]
+
+
+def _ours(prepared: PreparedProblem, settings: MBMSettings) -> dict:
     from prehensile.planning import RRTConnectSettings, rrt_connect
 
-    rng = np.random.default_rng(seed)
+    rng = np.random.default_rng(problem_seed(settings, prepared.problem))
     start = time.perf_counter()
     result = rrt_connect(prepared.ctx, prepared.q_start, prepared.q_goal,
                          settings=RRTConnectSettings(time_budget_s=settings.time_budget_s), rng=rng)
@@ -214,9 +249,12 @@ def _record(prepared: PreparedProblem, result, time_s: float, settings: MBMSetti
         "waypoints": len(result.path), "path_length": None, "exact_colliding": None,
         "attempts": result.info.get("attempts", 1),  # > 1: planned again after a failed certification
     }
-    end = {"invalid_start": prepared.q_start, "invalid_goal": prepared.q_goal}.get(result.status.value)
-    if end is not None:
-        record["reason"] = prepared.ctx.why_invalid(end)
+    ends = {"invalid_start": ("start",), "invalid_goal": ("goal",)}.get(result.status.value, ("start", "goal"))
+    for end in ends if not result.success else ():  # an end the planner could not use explains most failures
+        why = prepared.ctx.why_invalid(prepared.q_start if end == "start" else prepared.q_goal)
+        if why:
+            record["reason"] = f"{end}: {why}"
+            break
     if result.success:
         record["path_length"] = space.path_length(space.active(result.path))
         record["exact_colliding"] = path_collides_exactly(space, prepared.ctx.exact, result.path,
@@ -300,12 +338,12 @@ def run_mbm(problems_path: str | Path, model: RobotModel, spheres: tuple[SphereM
         "versions"}``; ``ompl`` and ``ratios`` are None without ``compare_ompl``.
     """
     problems = load_problems(problems_path, model, settings.limit)
+    check_problems(model, problems)
     _warm_up(model, spheres, problems[0], settings)
     runs = []
     for number, problem in enumerate(problems):
         prepared = PreparedProblem(model, spheres, problem, settings)
-        run = {"scenario": problem.scenario, "index": problem.index,
-               "ours": _ours(prepared, settings, settings.seed + number)}
+        run = {"scenario": problem.scenario, "index": problem.index, "ours": _ours(prepared, settings)}
         if settings.compare_ompl:
             run["ompl"] = _ompl(prepared, settings)
         runs.append(run)

@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import Optional
 
 import typer
+from rich.markup import escape
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Column, Table
 
@@ -101,9 +102,9 @@ def print_report(report: dict) -> None:
     console.print(f"ours: {statuses}. Times: search + simplification, over solved problems; path m: "
                   "workspace-weighted length; colliding: returned paths the exact meshes reject"
                   + ("; speed-up: OMPL's time / ours" if ompl else ""))
-    reasons: dict[str, str] = {}  # why an end was invalid -> the first problem it happened on
+    reasons: dict[tuple[str, str], str] = {}  # (status, why an end was unusable) -> the first problem
     for run in report["runs"]:
         if run["ours"].get("reason"):
-            reasons.setdefault(run["ours"]["reason"], f"{run['scenario']} #{run['index']}")
-    for reason, first in list(reasons.items())[:3]:
-        console.print(f"[yellow]invalid end[/] (first: {first}): {reason}")
+            reasons.setdefault((run["ours"]["status"], run["ours"]["reason"]), f"{run['scenario']} #{run['index']}")
+    for (status, reason), first in list(reasons.items())[:3]:
+        console.print(f"[yellow]{status}[/] (first: {first}): {escape(reason)}")

@@ -532,7 +532,8 @@ class RRTConnectSearch:
                 status = self.start_status or (PlanStatus.TIMEOUT if clock() >= deadline else PlanStatus.INVALID_GOAL)
                 if report is None:
                     return PlanResult(status, empty, PlanStats(plan_time_s=clock() - t0))
-                break
+                # the covering balls of the refined context reject an end the planning balls let through
+                return PlanResult(status, empty, PlanStats(**totals), info=self._failure_info(attempt, report))
             before = self.trees.counters.copy()
             path, root = self._run(deadline, NO_LIMIT if max_iterations is None else max_iterations)
             counters = self.trees.counters - before
@@ -594,7 +595,10 @@ def rrt_connect(ctx: PlanningContext, q_start: np.ndarray, q_goal: np.ndarray,
         (:class:`CertifyReport`, if certified). INVALID_START /
         INVALID_GOAL when the start / every goal is outside the limits, or in collision for
         the sphere model without a certified escape (see ``settings.escape``;
-        :meth:`~prehensile.planning.context.PlanningContext.why_invalid` says which); TIMEOUT when
+        :meth:`~prehensile.planning.context.PlanningContext.why_invalid` says which), also for
+        the covering balls of a search repeated after a failed certification (an end the
+        planning balls let through although the geometry collides; ``info["certify"]`` holds
+        the failed path's report); TIMEOUT when
         the budget ran out (or every tree filled up); CERTIFICATION_FAILED when every path
         found failed the exact check.
     """

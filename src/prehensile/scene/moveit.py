@@ -9,8 +9,9 @@ MoveIt conventions and how they are mapped:
 - A collision object may carry an object ``pose`` (MoveIt >= 2 / Noetic-late) plus a pose per
   primitive or mesh; the shape's world pose is ``T_world_object @ T_object_shape``. Without an
   object pose the per-shape poses are world poses (older MoveIt).
-- ``header.frame_id`` must be empty, ``world``, or a frame of ``fixed_frame_transforms``; other
-  frames (robot links) are rejected with a :class:`~prehensile.errors.SceneError`.
+- ``header.frame_id`` must be empty, ``world``, a frame of ``fixed_frame_transforms`` or, when the
+  scene is read for a robot, the robot's root link (placed by ``robot_state``); other frames
+  (moving robot links) are rejected with a :class:`~prehensile.errors.SceneError`.
 - Primitive dimensions follow ``shape_msgs/SolidPrimitive``: box ``[x, y, z]`` (full sides),
   sphere ``[radius]``, cylinder ``[height, radius]`` (note the order: height first), cone
   ``[height, radius]``. A cone becomes a **conservative cylinder** of the same height and base
@@ -151,10 +152,8 @@ def iter_mbm_problems(path: str | os.PathLike, robot: RobotModel | None = None,
     path = Path(path)
     texts: dict[tuple[str, int], dict[str, tuple[str, str]]] = {}
     for name, relative, read in _problem_files(path):
-        match = _PROBLEM_FILE.match(PurePosixPath(relative).name)
-        if match:
-            key = (str(PurePosixPath(relative).parent), int(match.group(2)))
-            texts.setdefault(key, {})[match.group(1)] = (name, read())
+        kind, index = _PROBLEM_FILE.match(PurePosixPath(relative).name).groups()
+        texts.setdefault((str(PurePosixPath(relative).parent), int(index)), {})[kind] = (name, read())
     label = _scenario_labels({folder for folder, _ in texts}, path)
     counts: dict[str, int] = {}
     for (folder, index), pair in sorted(texts.items(), key=lambda item: (label[item[0][0]], item[0][1])):
@@ -177,15 +176,16 @@ def moveit_scene_from_dict(data: Any, source: str, robot: RobotModel | None = No
     data = _mapping(data, source)
     frames = {str(t.get("child_frame_id", "")): _transform(t.get("transform", {}), f"{source}: fixed_frame_transforms")
               for t in data.get("fixed_frame_transforms") or [] if isinstance(t, Mapping)}
+    robots: tuple[PlacedRobot, ...] = ()
+    if robot is not None:
+        robots = (_placed_robot(data.get("robot_state") or {}, robot, f"{source}: robot_state"),)
+        frames.setdefault(robot.link_names[0], robots[0].T_world_base)  # the robot's root link
     world = _mapping(data.get("world") or {}, f"{source}: world")
     objects = world.get("collision_objects") or []
     bodies = tuple(
         _collision_object(obj, frames, f"{source}: world.collision_objects[{i}]{_label(obj)}")
         for i, obj in enumerate(objects)
     )
-    robots: tuple[PlacedRobot, ...] = ()
-    if robot is not None:
-        robots = (_placed_robot(data.get("robot_state") or {}, robot, f"{source}: robot_state"),)
     return Scene(robots=robots, obstacles=bodies, source=source)
 
 
@@ -381,7 +381,14 @@ def _label(obj: Any) -> str:
 def _read_yaml_file(path: Path) -> Any:
     if not path.is_file():
         raise SceneError(f"{path}: file not found")
-    return _parse(path.read_text(encoding="utf-8"), str(path))
+    return _parse(_read_text(path), str(path))
+
+
+def _decode(data: bytes, source: str) -> str:
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as err:
+        raise SceneError(f"{source}: not UTF-8 text ({err.reason} at byte {err.start})") from None
 
 
 def _parse(text: str, source: str) -> Any:
@@ -392,19 +399,30 @@ def _parse(text: str, source: str) -> Any:
 
 
 def _problem_files(path: Path):
-    """(name for messages, path inside the folder or archive with '/' separators, reader) for
-    each file of a folder or tar archive."""
+    """(name for messages, path inside the folder or archive with '/' separators, reader of its
+    text) for each ``sceneNNNN`` / ``requestNNNN`` YAML file of a folder or tar archive."""
     if path.is_dir():
         for file in sorted(path.rglob("*.y*ml")):
-            yield str(file), file.relative_to(path).as_posix(), (lambda f=file: f.read_text(encoding="utf-8"))
-    elif path.is_file() and tarfile.is_tarfile(path):
+            if _PROBLEM_FILE.match(file.name):
+                yield str(file), file.relative_to(path).as_posix(), (lambda f=file: _read_text(f))
+        return
+    if not path.exists():
+        raise SceneError(f"{path}: no such folder or archive of MoveIt problems")
+    try:
         with tarfile.open(path, "r:*") as archive:
             for member in archive:
-                if member.isfile():
-                    data = archive.extractfile(member).read().decode("utf-8")
-                    yield f"{path}:{member.name}", member.name, (lambda d=data: d)
-    else:
-        raise SceneError(f"{path}: not a folder or tar archive of MoveIt problems")
+                if member.isfile() and _PROBLEM_FILE.match(PurePosixPath(member.name).name):
+                    name = f"{path}:{member.name}"
+                    data = _decode(archive.extractfile(member).read(), name)
+                    yield name, member.name, (lambda d=data: d)
+    except tarfile.ReadError:
+        raise SceneError(f"{path}: not a folder or a tar archive of MoveIt problems (or a damaged one)") from None
+    except (EOFError, OSError, tarfile.TarError) as err:
+        raise SceneError(f"{path}: damaged or truncated archive ({err})") from None
+
+
+def _read_text(file: Path) -> str:
+    return _decode(file.read_bytes(), str(file))
 
 
 def _scenario_labels(folders: set[str], root: Path) -> dict[str, str]:
