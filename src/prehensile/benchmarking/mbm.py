@@ -208,9 +208,8 @@ def check_problems(model: RobotModel, problems: Sequence[MBMProblem]) -> None:
         PrehensileError: naming the first request at fault (see :func:`check_goal`).
     """
     for problem in problems:
-        joints = planned_joints(model, problem)
-        check_goal(model, problem, joints)
-        _clip_unplanned(model, problem, joints)
+        check_goal(model, problem, planned_joints(model, problem))
+        problem.request.goal_configuration(model)  # and the start it builds on
 
 
 def problem_seed(settings: MBMSettings, problem: MBMProblem) -> list[int]:
