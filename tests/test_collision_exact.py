@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 import trimesh
@@ -247,7 +249,7 @@ def test_a_flat_mesh_floor_is_bounded_by_a_flat_box():
 
 @pytest.mark.parametrize("obstacles, message", [
     ([Obstacle("box", Box((0.1, 0.1, 0.1)), np.full((4, 4), np.nan))], "'box': T_world_shape"),
-    ([Obstacle("box", Box((0.1, -0.1, 0.1)), np.eye(4))], "positive size"),
+    ([Obstacle("mirror", replace(_box_mesh((0.1, 0.1, 0.1)), scale=(1.0, -1.0, 1.0)), np.eye(4))], "positive size"),
     (Obstacle("box", Box((0.1, 0.1, 0.1)), np.eye(4)), "got one Obstacle"),
     ([Obstacle("box", Box((0.1, 0.1, 0.1)), np.eye(3))], "T_world_shape"),
     ([Obstacle("empty", Mesh.from_arrays(np.zeros((0, 3)), np.zeros((0, 3))), np.eye(4))], r"Mesh \(with triangles\)"),

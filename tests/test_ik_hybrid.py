@@ -10,7 +10,7 @@ from prehensile.collision import ExactChecker
 from prehensile.errors import PrehensileError
 from prehensile.ik import ChainSolver, IKStatus, collision_filter
 from prehensile.ik.hybrid import HybridIKSettings, ObjectRegion, solve_ik_hybrid, solve_regrasp_ik
-from prehensile.spatial import invert, matrix_to_rpy
+from prehensile.spatial import invert, matrix_to_rpy, rotation_error
 
 
 @pytest.fixture(scope="module")
@@ -74,6 +74,62 @@ def test_same_seed_same_result_and_bad_arguments(armar):
     result, _ = solve_regrasp_ik([left, right], [np.eye(4)[None]] * 2, region, "Torso", rng=0, time_budget_s=60,
                                  max_batches=2)
     assert result.status is IKStatus.NOT_CONVERGED and result.restarts == 32  # two batches of 16 attempts
+
+
+def _tool_errors(solver, q, target):
+    """Position (m) and rotation (rad) error of the solver's tool at q to ``target`` (4, 4)."""
+    tool = solver.tool_pose(q)
+    return np.linalg.norm(tool[:3, 3] - target[:3, 3]), np.linalg.norm(rotation_error(target[:3, :3], tool[:3, :3]))
+
+
+def test_failed_hybrid_ik_reports_its_closest_attempt(armar):
+    model, left, right, exact = armar
+    q = free_two_arm_configurations(model, exact, 1, seed=3)[0]
+    far = np.eye(4)
+    far[:3, 3] = [0.0, 0.0, 9.0]
+    for settings in (HybridIKSettings(time_budget_s=0.02), HybridIKSettings(time_budget_s=60, max_samples=3)):
+        result = solve_ik_hybrid([left], [far], "Torso", rng=0, settings=settings)
+        assert not result.success and result.target_indices == (0,)
+        assert 6.0 < result.position_error < 9.0  # the errors of its q, not inf
+        assert (result.position_error, result.rotation_error) == pytest.approx(_tool_errors(left, result.q, far))
+    # the left arm solved, the right one failed: the larger errors, the right arm's
+    result = solve_ik_hybrid([left, right], [left.tool_pose(q), far], "Torso", rng=0,
+                             settings=HybridIKSettings(time_budget_s=60, max_samples=2))
+    assert result.status is IKStatus.NOT_CONVERGED and result.target_indices == (0, 0)
+    assert (result.position_error, result.rotation_error) == pytest.approx(_tool_errors(right, result.q, far))
+    assert _tool_errors(left, result.q, left.tool_pose(q))[0] <= 1e-4
+    # the left arm failed, the right one was not tried: its error is unknown
+    result = solve_ik_hybrid([left, right], [far, right.tool_pose(q)], "Torso", rng=0,
+                             settings=HybridIKSettings(time_budget_s=60, max_samples=2))
+    assert result.target_indices == (0,) and result.position_error == result.rotation_error == np.inf
+    # solutions that is_valid rejects count: errors within the tolerances
+    result = solve_ik_hybrid([left, right], [left.tool_pose(q), right.tool_pose(q)], "Torso", rng=0,
+                             settings=HybridIKSettings(time_budget_s=60, max_samples=2), is_valid=lambda q: False)
+    assert result.status is IKStatus.NOT_CONVERGED and result.solutions.shape == (0, model.dof)
+    assert result.position_error <= 1e-4 and result.rotation_error <= 1e-3
+    assert _tool_errors(right, result.q, right.tool_pose(q))[0] <= 1e-4
+    # no attempt at all: inf, and the seed
+    result = solve_ik_hybrid([left], [far], "Torso", q, rng=0, settings=HybridIKSettings(time_budget_s=1e-9))
+    assert result.position_error == result.rotation_error == np.inf and np.array_equal(result.q, q)
+
+
+def test_failed_regrasp_ik_reports_its_closest_attempt(armar):
+    model, left, right, exact = armar
+    q = free_two_arm_configurations(model, exact, 1, seed=7)[0]
+    T_world_left, T_world_right = left.tool_pose(q), right.tool_pose(q)
+    grasps = [np.eye(4)[None], (invert(T_world_left) @ T_world_right)[None]]
+    p, rpy = T_world_left[:3, 3], matrix_to_rpy(T_world_left[:3, :3])
+    region = ObjectRegion(tuple(p - 0.02), tuple(p + 0.02), tuple(rpy - 0.05), tuple(rpy + 0.05))
+    result, T_world_object = solve_regrasp_ik([left, right], grasps, region, "Torso", rng=0, time_budget_s=60,
+                                              max_batches=2, is_valid=lambda q: False)
+    assert result.status is IKStatus.NOT_CONVERGED and T_world_object is None and result.target_indices == (0, 0)
+    assert result.position_error <= 1e-4 and result.rotation_error <= 1e-3  # a solution is_valid rejected
+    hands = invert(left.tool_pose(result.q)) @ right.tool_pose(result.q)  # holding the object by both grasps
+    np.testing.assert_allclose(hands, grasps[1][0], atol=1e-3)
+    far = ObjectRegion((0.0, 0.0, 8.9), (0.1, 0.1, 9.0))  # no attempt passes the reachability test
+    result, _ = solve_regrasp_ik([left, right], [np.eye(4)[None]] * 2, far, "Torso", q, rng=0, time_budget_s=60,
+                                 max_batches=1)
+    assert result.position_error == result.rotation_error == np.inf and np.array_equal(result.q, q)
 
 
 def test_regrasp_ik_finds_a_hand_over_pose(armar):

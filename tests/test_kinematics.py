@@ -36,6 +36,18 @@ def test_fk_matches_pinocchio_on_example_robots(erd):
     assert worst < 1e-9
 
 
+def test_configurations_outside_the_limits_are_posed_as_given(erd):
+    """forward_kinematics does not clip q to the limits (nor does pinocchio); within_limits tells."""
+    model, path = erd
+    limited = np.flatnonzero(np.isfinite(model.lower) & np.isfinite(model.upper))
+    q = model.neutral_configuration()
+    q[limited] = np.where(limited % 2, model.upper[limited] + 0.3, model.lower[limited] - 0.3)
+    assert limited.size and not model.within_limits(q)
+    poses = forward_kinematics(model, q)
+    assert np.abs(poses - PinocchioReference(model, path).link_poses(q)).max() < 1e-9
+    assert not np.allclose(poses, forward_kinematics(model, np.clip(q, model.lower, model.upper)))
+
+
 def test_jacobian_matches_pinocchio_and_finite_differences(erd):
     import pinocchio as pin
 

@@ -14,7 +14,7 @@ from prehensile.collision.world import Obstacle
 from prehensile.errors import PrehensileError
 from prehensile.kinematics.forward import forward_kinematics
 from prehensile.model.builder import JointSpec, LinkSpec, build_model
-from prehensile.model.geometry import Box, Capsule, Geometry, Sphere
+from prehensile.model.geometry import Box, Capsule, Geometry, Mesh, Sphere
 from prehensile.planning import (
     AttachedObject, PlanningContext, PlanStatus, RRTConnectSearch, RRTConnectSettings, rrt_connect, shortcut,
 )
@@ -298,7 +298,8 @@ def test_attached_object_is_carried_around_obstacles(arm):
 def test_attached_objects_are_validated_and_may_be_several_shapes(arm):
     model, spheres = arm
     bar, ball = Box((0.2, 0.05, 0.05)), Sphere(0.04)
-    for shape, message in [(Box((0.0, 0.6, 0.6)), "'plate': Box.*needs a positive size"), ([], "'plate': no shape"),
+    empty = Mesh.from_arrays(np.zeros((0, 3)), np.zeros((0, 3)))
+    for shape, message in [(empty, "'plate': Mesh.*needs a positive size"), ([], "'plate': no shape"),
                            ((bar, "box"), "'plate': box needs a positive size")]:
         with pytest.raises(PrehensileError, match=message):
             AttachedObject("plate", "l3", shape)
@@ -648,7 +649,8 @@ def test_a_robot_standing_on_a_table_plans():
 
 @pytest.mark.parametrize("kwargs, message", [
     ({"obstacles": [Box((0.1, 0.1, 0.1))]}, r"obstacles\[0\]: expected an Obstacle"),
-    ({"obstacles": [_box("flat", [0.5, 0, 0], [-0.3, 0.3, 0.3])]}, r"obstacles\[0\] 'flat'.*positive size"),
+    ({"obstacles": [Obstacle("empty", Mesh.from_arrays(np.zeros((0, 3)), np.zeros((0, 3))), np.eye(4))]},
+     r"obstacles\[0\] 'empty'.*positive size"),
     ({"obstacles": [Obstacle("ball", Sphere(0.1), np.diag([2.0, 2.0, 2.0, 1.0]))]}, "not a rotation matrix"),
     ({"T_world_base": np.full((4, 4), np.nan)}, "T_world_base: contains NaN"),
     ({"T_world_base": np.eye(3)}, r"T_world_base: expected shape \(\.\.\., 4, 4\)"),

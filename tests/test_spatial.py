@@ -20,6 +20,19 @@ def test_rpy_matches_scipy_fixed_axes_and_round_trips():
     assert np.allclose(matrix_to_rpy(R), rpy, atol=1e-9)
 
 
+def test_make_pose_takes_rpy_instead_of_a_rotation():
+    rpy = np.random.default_rng(5).uniform(-np.pi, np.pi, (4, 3))
+    T = make_pose(rpy=rpy, position=[0.1, 0.2, 0.3])  # a batch of rotations, one position
+    assert T.shape == (4, 4, 4)
+    assert np.allclose(T[:, :3, :3], Rotation.from_euler("xyz", rpy).as_matrix(), atol=1e-12)
+    assert np.array_equal(T[:, :3, 3], np.tile([0.1, 0.2, 0.3], (4, 1))) and np.array_equal(T[:, 3], [[0, 0, 0, 1]] * 4)
+    assert np.array_equal(make_pose(rpy=[0.0, 0.0, 0.0]), np.eye(4))
+    with pytest.raises(PrehensileError, match="make_pose: give rotation or rpy, not both"):
+        make_pose(np.eye(3), rpy=[0.0, 0.0, 0.1])
+    with pytest.raises(PrehensileError, match=r"make_pose: rpy must be \(\.\.\., 3\).*got shape \(2,\)"):
+        make_pose(rpy=[0.1, 0.2])
+
+
 def test_quaternion_and_axis_angle_match_scipy():
     rng = np.random.default_rng(1)
     quat = rng.normal(size=(200, 4))

@@ -100,6 +100,8 @@ def test_chain_from_srdf_and_disabled_pairs(tmp_path):
         (lambda t: t.replace('lower="-2" upper="2"', 'lower="2" upper="-2"'), "lower limit 2.0 above upper limit -2.0"),
         (lambda t: t.replace('xyz="0 1 0"/><limit lower="-2"', 'xyz="0 0 0"/><limit lower="-2"'), "zero or invalid axis"),
         (lambda t: t.replace('radius="0.04" length="0.3"', 'radius="-0.04" length="0.3"'), "link 'upper' <collision> #0 <cylinder>: must be positive"),
+        (lambda t: t.replace('radius="0.04" length="0.3"', 'radius="inf" length="0.3"'),
+         "link 'upper' <collision> #0 <cylinder>: must be positive and finite, got inf"),
         (lambda t: t.replace('<box size="0.2 0.2 0.1"/>', '<mesh filename="meshes/missing.stl"/>'), "link 'base' <collision> #0 <mesh>: file 'meshes/missing.stl' not found"),
         (lambda t: t.replace('<box size="0.2 0.2 0.1"/>', f'<mesh filename="{WEDGE}" scale="0 1 1"/>'),
          "link 'base' <collision> #0 <mesh> scale: every factor must be non-zero"),

@@ -207,9 +207,9 @@ class ExactChecker:
             exact = coal_geometry(o.shape)
             self._obstacles.append((o.name, exact, convex_bound(o.shape, exact), coal_transform(o.T_world_shape)))
             T = np.asarray(o.T_world_shape, dtype=float)
-            if isinstance(o.shape, Mesh):  # a flat mesh (a floor) gets a flat box
+            if isinstance(o.shape, Mesh):  # a flat mesh (a floor) gets a flat box, 1 pm thick (a Box needs sides > 0)
                 (T_shape_box,), (half,) = box_cover(geometry_triangles(Geometry(o.shape)), 1)
-                self._obstacle_bounds.append((Box(tuple(2.0 * half)), T @ T_shape_box))
+                self._obstacle_bounds.append((Box(tuple(np.maximum(2.0 * half, 1e-12))), T @ T_shape_box))
             else:
                 self._obstacle_bounds.append((o.shape, T))
         self._parts = robot_parts(model)

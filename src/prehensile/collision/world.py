@@ -43,14 +43,8 @@ SHAPE_SIZES = ("needs a positive size (m); valid shapes: Box(size (3,)), Sphere(
 
 
 def positive_size(shape: Shape) -> bool:
-    """``shape`` is one of the shapes and has a positive size (a zero-length capsule is a ball)."""
-    if isinstance(shape, Box):
-        return np.shape(shape.size) == (3,) and bool(np.all(np.asarray(shape.size, dtype=float) > 0))
-    if isinstance(shape, Sphere):
-        return shape.radius > 0
-    if isinstance(shape, Cylinder):
-        return shape.radius > 0 and shape.length > 0
-    if isinstance(shape, Capsule):
-        return shape.radius > 0 and shape.length >= 0
-    return (isinstance(shape, Mesh) and bool(np.all(np.asarray(shape.scale, dtype=float) > 0))
-            and len(shape.trimesh.faces) > 0)
+    """``shape`` is one of the shapes (each checks its sizes when built) and, if a mesh, has
+    positive scale factors and triangles."""
+    if isinstance(shape, Mesh):
+        return bool(np.all(np.asarray(shape.scale, dtype=float) > 0)) and len(shape.trimesh.faces) > 0
+    return isinstance(shape, (Box, Sphere, Cylinder, Capsule))

@@ -90,7 +90,8 @@ class HandPair:
 
     def solve(self, q: np.ndarray, T_world_object: np.ndarray, seeds: np.ndarray, objects: np.ndarray,
               relative: bool, chosen: np.ndarray, grasp_sets: Sequence[np.ndarray],
-              bounds: tuple[np.ndarray, np.ndarray], reach: Sequence[ReachSamples]) -> tuple[int, int, float, float]:
+              bounds: tuple[np.ndarray, np.ndarray], reach: Sequence[ReachSamples]
+              ) -> tuple[int, int, int, float, float]:
         """Solve the attempts in turn (compiled) until one converges, object pose free.
 
         Attempt r starts from the joint values ``seeds[r]`` (n,), except that each arm starts
@@ -100,10 +101,13 @@ class HandPair:
         link) and the grasps ``chosen[r]`` (2,) (indices into the sets ``grasp_sets`` (k_h, 4, 4)).
 
         Args:
-            q, T_world_object: (dof,) and (4, 4) outputs; ``q`` holds the other joints' values.
+            q, T_world_object: (dof,) and (4, 4) outputs, the converged attempt's or else the
+                closest one's (in tolerances, :func:`~prehensile.ik.kernels.miss`), unchanged if
+                every attempt was skipped; ``q`` holds the other joints' values.
 
         Returns:
-            (converged attempt or -1, iterations, position error m, rotation error rad).
+            (converged attempt or -1, attempt left in the outputs or -1, iterations, its
+            largest position error m and rotation error rad of the two tools (inf if none)).
         """
         s = self.settings
         return _hands_restarts(q, T_world_object, seeds, objects, relative, chosen, grasp_sets[0], grasp_sets[1],
@@ -228,46 +232,50 @@ def _hands_restarts(q, T_o, seeds, objects, relative, chosen, grasps_a, grasps_b
                     var_of_q, var_q, T_world_root, tcp, lower, upper, lo, hi, max_step_pos, max_step_rot, method,
                     damping, tol_pos, tol_rot, max_iterations, stall_iterations):
     """:meth:`HandPair.solve`: each attempt iterates steps until both tools are within the
-    tolerances (converged), the iteration cap, or ``stall_iterations`` without a 0.1% gain."""
+    tolerances (converged), the iteration cap, or ``stall_iterations`` without a 0.1% gain.
+    The converged attempt, else the closest, is copied to q and T_o."""
     n = var_q.shape[0]
     poses, jac, err, target = np.empty((2, 4, 4)), np.empty((2, 6, n)), np.empty(12), np.empty((4, 4))
     frames_a, frames_b = np.empty((table_a.shape[0], 3, 4)), np.empty((table_b.shape[0], 3, 4))
     Jw, A, x, dx = np.empty((12, n + 6)), np.empty((12, 12)), np.empty(12), np.empty(n + 6)
     grasps, local = np.empty((2, 4, 4)), np.empty((4, 4))
-    total, pos, rot = 0, np.inf, np.inf
+    q_try, T_try = q.copy(), T_o.copy()
+    total, nearest, nearest_score, nearest_pos, nearest_rot = 0, -1, np.inf, np.inf, np.inf
     for a in range(seeds.shape[0]):
         for c in range(n):
-            q[var_q[c]] = seeds[a, c]
+            q_try[var_q[c]] = seeds[a, c]
         grasps[0], grasps[1] = grasps_a[chosen[a, 0]], grasps_b[chosen[a, 1]]
-        chain_pose_jacobian(q, T_world_root, table_a, var_of_q, tcp[0], frames_a, poses[0], jac[0])
-        chain_pose_jacobian(q, T_world_root, table_b, var_of_q, tcp[1], frames_b, poses[1], jac[1])
+        chain_pose_jacobian(q_try, T_world_root, table_a, var_of_q, tcp[0], frames_a, poses[0], jac[0])
+        chain_pose_jacobian(q_try, T_world_root, table_b, var_of_q, tcp[1], frames_b, poses[1], jac[1])
         if relative:  # objects[a] is in the frame of arm b's base link
             base = frames_b[reach_b.base]
             for r in range(3):
                 for c in range(4):
-                    T_o[r, c] = (base[r, 0] * objects[a, 0, c] + base[r, 1] * objects[a, 1, c]
-                                 + base[r, 2] * objects[a, 2, c] + (base[r, 3] if c == 3 else 0.0))
-            T_o[3, :] = objects[a, 3]
+                    T_try[r, c] = (base[r, 0] * objects[a, 0, c] + base[r, 1] * objects[a, 1, c]
+                                   + base[r, 2] * objects[a, 2, c] + (base[r, 3] if c == 3 else 0.0))
+            T_try[3, :] = objects[a, 3]
         else:
-            T_o[:, :] = objects[a]
+            T_try[:, :] = objects[a]
         reachable = True
         for reach, frames, h in ((reach_a, frames_a, 0), (reach_b, frames_b, 1)):
-            _compose(T_o, grasps[h], target)
+            _compose(T_try, grasps[h], target)
             to_frame(frames[reach.base], target, local)
             s = nearest_sample(reach, local)
             if s < 0:
                 reachable = False
                 break
             for c in range(reach.var_q.shape[0]):
-                q[reach.var_q[c]] = reach.values[s, c]
+                q_try[reach.var_q[c]] = reach.values[s, c]
         if not reachable:
             continue
         best, since_best = np.inf, 0
         for it in range(max_iterations + 1):
-            pos, rot = _hands_error(q, T_o, grasps, table_a, table_b, var_of_q, T_world_root, tcp, frames_a,
+            pos, rot = _hands_error(q_try, T_try, grasps, table_a, table_b, var_of_q, T_world_root, tcp, frames_a,
                                     frames_b, poses, jac, err, target)
             if pos <= tol_pos and rot <= tol_rot:
-                return a, total + it, pos, rot
+                q[:] = q_try
+                T_o[:, :] = T_try
+                return a, a, total + it, pos, rot
             score = pos / tol_pos + rot / tol_rot
             if score < 0.999 * best:
                 best, since_best = score, 0
@@ -275,7 +283,11 @@ def _hands_restarts(q, T_o, seeds, objects, relative, chosen, grasps_a, grasps_b
                 since_best += 1
             if since_best >= stall_iterations or it == max_iterations:
                 break
-            _hands_update(q, T_o, grasps, jac, err, var_q, lower, upper, lo, hi, max_step_pos, max_step_rot, method,
-                          damping, Jw, A, x, dx)
+            _hands_update(q_try, T_try, grasps, jac, err, var_q, lower, upper, lo, hi, max_step_pos, max_step_rot,
+                          method, damping, Jw, A, x, dx)
         total += it
-    return -1, total, pos, rot
+        if score < nearest_score:  # q_try is where the errors were last measured
+            q[:] = q_try
+            T_o[:, :] = T_try
+            nearest, nearest_score, nearest_pos, nearest_rot = a, score, pos, rot
+    return -1, nearest, total, nearest_pos, nearest_rot

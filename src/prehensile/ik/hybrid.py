@@ -70,7 +70,12 @@ def solve_ik_hybrid(arms: Sequence[ChainSolver], targets: Sequence[np.ndarray], 
 
     Returns:
         :class:`IKResult` with ``target_indices`` the pose reached per arm; TIMEOUT (budget
-        spent) or NOT_CONVERGED (``max_samples`` reached) if none.
+        spent) or NOT_CONVERGED (``max_samples`` reached) if none. An attempt (one sample of
+        the free joints) ends at the first arm that fails; a failed result reports the attempt
+        that tried the most arms and, of those, came closest (its worst arm, in tolerances:
+        :meth:`~prehensile.ik.jacobian.ChainSolver.miss`): ``q`` with the failing arm at its
+        closest, the largest errors over the arms (inf for an arm not tried; both inf, and
+        ``q`` the seed, if no arm was tried at all) and the target indices of the arms tried.
     """
     if len(arms) != len(targets) or not arms:
         raise PrehensileError(f"solve_ik_hybrid: {len(arms)} arms but {len(targets)} targets")
@@ -88,12 +93,13 @@ def solve_ik_hybrid(arms: Sequence[ChainSolver], targets: Sequence[np.ndarray], 
     free_q = free_joint_indices(model, arms, free)
     lower, upper = model.sampling_limits(free_q)
     q = arms[0].seed(q_seed)
-    samples, iterations, best = 0, 0, (np.inf, np.inf)
+    samples, iterations = 0, 0
+    closest = ((len(arms), np.inf), q.copy(), np.inf, np.inf, ())  # (arms not tried, miss), q, errors, targets
     while True:
         if samples:
             q[free_q] = rng.uniform(lower, upper)
         samples += 1
-        reached, errors = [], []
+        reached, errors, misses, attempt, solved = [], [], [], q, 0
         for arm, arm_targets in zip(arms, poses):
             remaining = settings.time_budget_s - (clock() - start)
             if remaining <= 0:
@@ -101,20 +107,27 @@ def solve_ik_hybrid(arms: Sequence[ChainSolver], targets: Sequence[np.ndarray], 
             result = solve_ik_complete(arm, arm_targets, q, rng, CompleteIKSettings(
                 time_budget_s=remaining, max_restarts=settings.arm_restarts))
             iterations += result.iterations
-            if not result.success:
-                break
-            q = result.q
+            attempt = result.q  # the failing arm at its closest, the arms before it solved
             reached.append(result.target_index)
             errors.append((result.position_error, result.rotation_error))
-        if len(reached) == len(arms):
-            best = (max(e[0] for e in errors), max(e[1] for e in errors))
-            if is_valid is None or is_valid(q):
-                return IKResult(IKStatus.SUCCESS, q.copy(), q[None].copy(), best[0], best[1], iterations,
-                                clock() - start, reached[0], samples - 1, tuple(reached))
+            misses.append(arm.miss(result.position_error, result.rotation_error))
+            if not result.success:
+                break
+            q, solved = result.q, solved + 1
+        untried = len(arms) - len(errors)
+        pos, rot = (np.inf, np.inf) if untried else (max(e[0] for e in errors), max(e[1] for e in errors))
+        if solved == len(arms) and (is_valid is None or is_valid(q)):
+            return IKResult(IKStatus.SUCCESS, q.copy(), q[None].copy(), pos, rot, iterations,
+                            clock() - start, reached[0], samples - 1, tuple(reached))
+        key = (untried, max(misses, default=np.inf))
+        if key < closest[0]:  # a solution that is_valid rejects counts too
+            closest = (key, attempt.copy(), pos, rot, tuple(reached))
         capped = settings.max_samples is not None and samples >= settings.max_samples
         if capped or clock() - start >= settings.time_budget_s:
-            return IKResult(IKStatus.NOT_CONVERGED if capped else IKStatus.TIMEOUT, q.copy(),
-                            np.zeros((0, model.dof)), best[0], best[1], iterations, clock() - start, 0, samples - 1)
+            _, q_closest, pos, rot, reached = closest
+            return IKResult(IKStatus.NOT_CONVERGED if capped else IKStatus.TIMEOUT, q_closest,
+                            np.zeros((0, model.dof)), pos, rot, iterations, clock() - start,
+                            reached[0] if reached else 0, samples - 1, reached)
 
 
 @dataclass(frozen=True)
@@ -187,7 +200,11 @@ def solve_regrasp_ik(arms: Sequence[ChainSolver], grasps: Sequence[np.ndarray], 
     Returns:
         (result, T_world_object (4, 4) or None); ``result.target_indices`` are the grasps,
         ``restarts`` the attempts before the accepted one. UNREACHABLE if ``pairs`` is empty,
-        else TIMEOUT (budget spent) or NOT_CONVERGED (``max_batches`` tried) if none.
+        else TIMEOUT (budget spent) or NOT_CONVERGED (``max_batches`` tried) if none. A failed
+        result reports the attempt that came closest (in tolerances, as
+        :func:`~prehensile.ik.kernels.miss`; a solution that ``is_valid`` rejects counts too):
+        its ``q``, the larger errors of the two hands and its grasps (the object pose is None);
+        errors inf and ``q`` the seed if no attempt passed the reachability test.
     """
     start = clock()
     rng = np.random.default_rng(rng)
@@ -200,6 +217,7 @@ def solve_regrasp_ik(arms: Sequence[ChainSolver], grasps: Sequence[np.ndarray], 
     bounds = UNBOUNDED if region is None else region.bounds()
     T_a_b = _base_offset(pair, q0) if region is None else None
     q, T = q0.copy(), np.eye(4)
+    closest = (np.inf, q0, np.inf, np.inf, ())  # miss, q, errors, grasps
     attempts = iterations = batches = 0
     while len(pairs) and clock() - start < time_budget_s and (max_batches is None or batches < max_batches):
         batches += 1
@@ -217,21 +235,25 @@ def solve_regrasp_ik(arms: Sequence[ChainSolver], grasps: Sequence[np.ndarray], 
         objects, chosen = np.ascontiguousarray(objects), np.ascontiguousarray(chosen, dtype=np.int64)
         seeds = rng.uniform(pair.lower, pair.upper, size=(len(chosen), len(pair.var_q)))
         while len(seeds):
-            found, its, pos_err, rot_err = pair.solve(q, T, seeds, objects, region is None, chosen, grasp_sets,
-                                                      bounds, reach)
+            found, nearest, its, pos_err, rot_err = pair.solve(q, T, seeds, objects, region is None, chosen,
+                                                               grasp_sets, bounds, reach)
             iterations += its
             attempts += len(seeds) if found < 0 else found + 1
-            if found < 0:
-                break
-            if is_valid is None or is_valid(q):
+            if found >= 0 and (is_valid is None or is_valid(q)):
                 indices = tuple(int(i) for i in chosen[found])
                 return IKResult(IKStatus.SUCCESS, q.copy(), q[None].copy(), pos_err, rot_err, iterations,
                                 clock() - start, indices[0], attempts - 1, indices), T.copy()
+            miss = pos_err / pair.settings.position_tolerance + rot_err / pair.settings.rotation_tolerance
+            if miss < closest[0]:  # q holds attempt ``nearest`` (a solution is_valid rejected, if found)
+                closest = (miss, q.copy(), pos_err, rot_err, tuple(int(i) for i in chosen[nearest]))
+            if found < 0:
+                break
             seeds, objects, chosen = seeds[found + 1:], objects[found + 1:], chosen[found + 1:]
     status = (IKStatus.UNREACHABLE if not len(pairs) else
               IKStatus.NOT_CONVERGED if max_batches is not None and batches >= max_batches else IKStatus.TIMEOUT)
-    return IKResult(status, q0, np.zeros((0, len(q0))), np.inf, np.inf, iterations, clock() - start, 0,
-                    attempts), None
+    _, q_closest, pos_err, rot_err, indices = closest
+    return IKResult(status, q_closest, np.zeros((0, len(q0))), pos_err, rot_err, iterations, clock() - start,
+                    indices[0] if indices else 0, attempts, indices), None
 
 
 def _base_offset(pair: HandPair, q: np.ndarray) -> np.ndarray | None:

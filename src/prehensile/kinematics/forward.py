@@ -36,8 +36,12 @@ def _non_finite(row: int, batch: tuple[int, ...]) -> PrehensileError:
 def forward_kinematics(model: RobotModel, q: np.ndarray, T_world_base: np.ndarray | None = None) -> np.ndarray:
     """Poses of all links, shape (*batch, L, 4, 4), in the order of ``model.link_names``.
 
+    The joint limits are not checked (as in pinocchio): a q outside them is posed as given,
+    which the planners rely on. Test it with :meth:`~prehensile.model.RobotModel.within_limits`
+    (:meth:`~prehensile.model.RobotModel.check_configuration` checks shape and finiteness only).
+
     Args:
-        q: joint values (rad or m), shape (*batch, dof).
+        q: joint values (rad or m), shape (*batch, dof); not clipped to the limits.
         T_world_base: pose (4, 4) of the root link in the world; identity if None.
 
     Raises:

@@ -1,7 +1,9 @@
 """Geometric shapes attached to links and scene objects (SI units).
 
 Every shape sits in its own frame: boxes, spheres and ellipsoids are centred on its origin;
-cylinders and capsules are centred on it with their axis along z (URDF convention).
+cylinders and capsules are centred on it with their axis along z (URDF convention). Each shape
+checks its sizes when built and raises :class:`~prehensile.errors.ModelError` naming the bad value;
+the loaders check them first, so that their errors name the file and element.
 """
 
 from __future__ import annotations
@@ -15,37 +17,68 @@ import numpy as np
 from prehensile.errors import ModelError
 
 
+def _check(shape: object, name: str, field: str, count: int, valid, rule: str) -> None:
+    """ModelError naming the shape unless its ``field`` holds ``count`` finite numbers (1: a
+    scalar) that are all ``valid``."""
+    value = getattr(shape, field)
+    try:
+        x = np.asarray(value)
+    except ValueError:  # a ragged sequence
+        x = np.asarray(None)
+    if not (x.dtype.kind in "iuf" and x.shape == (() if count == 1 else (count,))
+            and np.all(np.isfinite(x)) and np.all(valid(x))):
+        raise ModelError(f"{name}: {field} must be {rule}, got {value!r}")
+
+
 @dataclass(frozen=True)
 class Box:
-    """Box with full side lengths ``size`` (m), shape (3,)."""
+    """Box with full side lengths ``size`` (m), shape (3,), each > 0."""
 
     size: tuple[float, float, float]
+
+    def __post_init__(self) -> None:
+        _check(self, "Box", "size", 3, lambda x: x > 0, "three finite side lengths > 0 (m)")
 
 
 @dataclass(frozen=True)
 class Sphere:
+    """Sphere of ``radius`` > 0 (m)."""
+
     radius: float
+
+    def __post_init__(self) -> None:
+        _check(self, "Sphere", "radius", 1, lambda x: x > 0, "a finite length > 0 (m)")
 
 
 @dataclass(frozen=True)
 class Cylinder:
-    """Cylinder of ``radius`` and total ``length`` (m) along z."""
+    """Cylinder of ``radius`` > 0 and total ``length`` > 0 (m) along z."""
 
     radius: float
     length: float
+
+    def __post_init__(self) -> None:
+        _check(self, "Cylinder", "radius", 1, lambda x: x > 0, "a finite length > 0 (m)")
+        _check(self, "Cylinder", "length", 1, lambda x: x > 0, "a finite length > 0 (m)")
 
 
 @dataclass(frozen=True)
 class Capsule:
-    """Capsule: cylinder of ``radius`` and ``length`` (m) along z with hemispherical caps."""
+    """Capsule: cylinder of ``radius`` > 0 and ``length`` >= 0 (m) along z with hemispherical
+    caps (length 0: a ball)."""
 
     radius: float
     length: float
 
+    def __post_init__(self) -> None:
+        _check(self, "Capsule", "radius", 1, lambda x: x > 0, "a finite length > 0 (m)")
+        _check(self, "Capsule", "length", 1, lambda x: x >= 0, "a finite length >= 0 (m; 0 makes a ball)")
+
 
 @dataclass(frozen=True, eq=False)
 class Mesh:
-    """Triangle mesh read from ``path`` and scaled per axis by ``scale``.
+    """Triangle mesh read from ``path`` and scaled per axis by ``scale`` (three finite non-zero
+    factors; a negative one mirrors, as URDF allows).
 
     The file is read on first use of :attr:`trimesh`. An in-memory mesh (e.g. one compiled by
     MuJoCo) has ``path=None`` and carries ``vertices`` (V, 3) in m and ``faces`` (F, 3) vertex
@@ -56,6 +89,10 @@ class Mesh:
     scale: tuple[float, float, float] = (1.0, 1.0, 1.0)
     vertices: np.ndarray | None = None
     faces: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        _check(self, f"Mesh {self.path or '(in memory)'}", "scale", 3, lambda x: x != 0,
+               "three finite non-zero factors (a negative one mirrors)")
 
     @classmethod
     def from_arrays(cls, vertices: np.ndarray, faces: np.ndarray) -> "Mesh":

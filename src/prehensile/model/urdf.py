@@ -30,8 +30,8 @@ def _origin(element: ET.Element | None, where: str) -> np.ndarray:
 
 
 def _positive(value: float, where: str) -> float:
-    if not value > 0:
-        raise ModelError(f"{where}: must be positive, got {value}")
+    if not 0 < value < np.inf:
+        raise ModelError(f"{where}: must be positive and finite, got {value}")
     return value
 
 

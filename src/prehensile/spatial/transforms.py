@@ -72,8 +72,27 @@ def quaternion_to_matrix(quat: np.ndarray) -> np.ndarray:
     return R.reshape(quat.shape[:-1] + (3, 3))
 
 
-def make_pose(rotation: np.ndarray | None = None, position: np.ndarray | None = None) -> np.ndarray:
-    """Homogeneous transform(s) from rotation (..., 3, 3) and position (..., 3) in m."""
+def make_pose(rotation: np.ndarray | None = None, position: np.ndarray | None = None, *,
+              rpy: np.ndarray | None = None) -> np.ndarray:
+    """Homogeneous transform(s) (..., 4, 4) from a rotation and a position; the leading
+    dimensions of the inputs broadcast.
+
+    Args:
+        rotation: rotation matrices (..., 3, 3); identity if None.
+        position: positions (..., 3) in m; zero if None.
+        rpy: roll, pitch, yaw (..., 3) in rad, instead of ``rotation``
+            (:func:`rpy_to_matrix`: ``R = Rz(yaw) @ Ry(pitch) @ Rx(roll)``, as URDF).
+
+    Raises:
+        PrehensileError: both ``rotation`` and ``rpy`` given, or ``rpy`` not of shape (..., 3).
+    """
+    if rpy is not None:
+        if rotation is not None:
+            raise PrehensileError("make_pose: give rotation or rpy, not both")
+        rpy = np.asarray(rpy, dtype=float)
+        if rpy.shape[-1:] != (3,):
+            raise PrehensileError(f"make_pose: rpy must be (..., 3) (roll, pitch, yaw in rad), got shape {rpy.shape}")
+        rotation = rpy_to_matrix(rpy)
     rotation = np.eye(3) if rotation is None else np.asarray(rotation, dtype=float)
     position = np.zeros(3) if position is None else np.asarray(position, dtype=float)
     batch = np.broadcast_shapes(rotation.shape[:-2], position.shape[:-1])

@@ -1,0 +1,36 @@
+"""Shape constructors check their sizes."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from prehensile.errors import ModelError
+from prehensile.model.geometry import Box, Capsule, Cylinder, Mesh, Sphere
+
+
+@pytest.mark.parametrize("build, message", [
+    (lambda: Box((0.1, -0.1, 0.1)), r"Box: size must be three finite side lengths > 0 \(m\), got \(0.1, -0.1, 0.1\)"),
+    (lambda: Box((0.1, 0.1)), r"Box: size must be three .*got \(0.1, 0.1\)"),
+    (lambda: Box((0.1, np.nan, 0.1)), r"Box: size .*got \(0.1, nan, 0.1\)"),
+    (lambda: Box(("1", "1", "1")), r"Box: size .*got \('1', '1', '1'\)"),
+    (lambda: Sphere(0.0), r"Sphere: radius must be a finite length > 0 \(m\), got 0.0"),
+    (lambda: Sphere(np.inf), "Sphere: radius .*got inf"),
+    (lambda: Cylinder(0.1, 0.0), "Cylinder: length must be a finite length > 0 .*got 0.0"),
+    (lambda: Cylinder(-0.1, 0.3), "Cylinder: radius .*got -0.1"),
+    (lambda: Capsule(0.0, 0.3), "Capsule: radius .*got 0.0"),
+    (lambda: Capsule(0.1, -0.01), r"Capsule: length must be a finite length >= 0 \(m; 0 makes a ball\), got -0.01"),
+    (lambda: Mesh(None, (1.0, 0.0, 1.0)), r"Mesh \(in memory\): scale must be three finite non-zero factors"),
+    (lambda: Mesh("wedge.obj", (1.0, 1.0, np.nan)), r"Mesh wedge.obj: scale .*got \(1.0, 1.0, nan\)"),
+])
+def test_bad_sizes_are_model_errors_naming_shape_and_value(build, message):
+    with pytest.raises(ModelError, match=message):
+        build()
+
+
+def test_good_sizes_are_kept():
+    assert Box((0.1, 0.2, 0.3)).size == (0.1, 0.2, 0.3)
+    assert Box(np.array([1, 2, 3])).size.tolist() == [1, 2, 3]  # arrays and integers too
+    assert Sphere(np.float64(0.05)).radius == 0.05 and Cylinder(0.1, 0.3).length == 0.3
+    assert Capsule(0.02, 0.0).length == 0.0  # a ball, as scene files accept
+    assert Mesh(None, (-1.0, 1.0, 0.001)).scale == (-1.0, 1.0, 0.001)  # a negative factor mirrors, as in URDF
