@@ -21,6 +21,7 @@ import numpy as np
 
 from prehensile.clock import clock
 from prehensile.errors import PrehensileError
+from prehensile.ik import kernels
 from prehensile.ik.complete import CompleteIKSettings, solve_ik_complete
 from prehensile.ik.hand_pair import UNBOUNDED, HandPair
 from prehensile.ik.jacobian import ChainSolver, free_joint_indices
@@ -243,7 +244,7 @@ def solve_regrasp_ik(arms: Sequence[ChainSolver], grasps: Sequence[np.ndarray], 
                 indices = tuple(int(i) for i in chosen[found])
                 return IKResult(IKStatus.SUCCESS, q.copy(), q[None].copy(), pos_err, rot_err, iterations,
                                 clock() - start, indices[0], attempts - 1, indices), T.copy()
-            miss = pos_err / pair.settings.position_tolerance + rot_err / pair.settings.rotation_tolerance
+            miss = kernels.miss(pos_err, rot_err, pair.settings.position_tolerance, pair.settings.rotation_tolerance)
             if miss < closest[0]:  # q holds attempt ``nearest`` (a solution is_valid rejected, if found)
                 closest = (miss, q.copy(), pos_err, rot_err, tuple(int(i) for i in chosen[nearest]))
             if found < 0:
