@@ -146,6 +146,34 @@ def test_bench_mbm_another_robot_with_generated_balls(tmp_path):
 
 
 
+def test_ball_radius_sizes_the_generated_balls(tmp_path):
+    from prehensile import robots
+    from prehensile.collision.spheres import generate_sphere_model
+
+    _write_armar_problems(tmp_path / "problems" / "shelf_armar3")
+    out = tmp_path / "report.json"
+    result = runner.invoke(app, ["bench", "mbm", str(tmp_path / "problems"), "--robot", "armar3", "--limit", "1",
+                                 "--ball-radius", "0.04", "--json", str(out)])
+    assert result.exit_code == 0, result.output
+    report = json.loads(out.read_text())
+    assert report["overall"]["solved"] == 1 and report["overall"]["colliding_paths"] == 0
+    model = robots.load("armar3")
+    assert report["robot"]["spheres"] == generate_sphere_model(model, max_radius=0.04).n_spheres
+    assert report["robot"]["spheres"] > generate_sphere_model(model).n_spheres
+    assert "--ball-radius 0.04" in report["command"]
+
+
+@pytest.mark.parametrize("extra, message", [
+    (["--ball-radius", "-1"], "--ball-radius: must be positive (m), got -1"),
+    (["--ball-radius", "0.04", "--spheres", __file__], "give it or --spheres, not both"),
+])
+def test_bad_ball_options_exit_2(tmp_path, extra, message):
+    _write_armar_problems(tmp_path / "problems" / "shelf_armar3")
+    result = runner.invoke(app, ["bench", "mbm", str(tmp_path / "problems"), "--robot", "armar3", *extra])
+    assert result.exit_code == 2
+    assert message in " ".join(result.output.split())
+
+
 def test_unusable_ends_are_reported_with_their_reason_and_unplanned_joints_clipped(tmp_path, caplog):
     import yaml
 

@@ -84,17 +84,19 @@ class MBMSettings:
                 raise PrehensileError(f"{name}: must be positive (m), got {getattr(self, name)}")
 
 
-def benchmark_spheres(model: RobotModel, spherized_urdf: str | Path | None,
-                      pad: bool = False) -> tuple[SphereModel, SphereModel | None]:
+def benchmark_spheres(model: RobotModel, spherized_urdf: str | Path | None, pad: bool = False,
+                      max_radius: float | None = None) -> tuple[SphereModel, SphereModel | None]:
     """(planning balls, covering balls or None) of the robot.
 
-    Without ``spherized_urdf``: balls generated from the meshes (they cover them). Else the
+    Without ``spherized_urdf``: balls generated from the collision geometry (they cover it; none
+    larger than ``max_radius`` m where the per-link cap allows, see
+    :func:`~prehensile.collision.spheres.generate_sphere_model`). Else the
     file's balls as they are, which can miss mesh contacts (the exact certification rejects
     such paths; the planner then plans again with the covering balls, the same balls padded to
     cover the meshes, on the links that collided), or with ``pad`` the padded balls alone.
     """
     if spherized_urdf is None:
-        return generate_sphere_model(model), None
+        return generate_sphere_model(model, max_radius=max_radius), None
     balls = spheres_from_urdf(model, spherized_urdf)
     padded = pad_sphere_model(balls, model)
     return (padded, None) if pad else (balls, padded)

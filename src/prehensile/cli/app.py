@@ -23,6 +23,15 @@ EXIT_FREE, EXIT_COLLIDING, EXIT_BAD_INPUT, EXIT_INTERNAL = 0, 1, 2, 3
 
 SRDF_OPTION = typer.Option(None, "--srdf", help="SRDF to apply: planning groups (chains), end effectors, disabled "
                            "collision pairs (default: <stem>.srdf next to a URDF or MJCF file, if present).")
+BALL_RADIUS_OPTION = typer.Option(None, "--ball-radius", help="Largest ball (m) of the sphere model generated for "
+                                  "planning (default: 8 balls per link); robots with big primitive links such as "
+                                  "ARMAR-III's torso want 0.04.")
+
+
+def check_ball_radius(ball_radius: float | None) -> None:
+    """Refuse a ``--ball-radius`` that is not a positive length."""
+    if ball_radius is not None and not ball_radius > 0:
+        raise PrehensileError(f"--ball-radius: must be positive (m), got {ball_radius}")
 
 
 def handles_errors(command):

@@ -11,7 +11,8 @@ from rich.markup import escape
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Column, Table
 
-from prehensile.cli.app import SRDF_OPTION, bench_app, console, err_console, handles_errors
+from prehensile.cli.app import (BALL_RADIUS_OPTION, SRDF_OPTION, bench_app, check_ball_radius, console, err_console,
+                                handles_errors)
 from prehensile.errors import PrehensileError
 
 
@@ -26,6 +27,7 @@ def bench_mbm(
     pad: bool = typer.Option(False, "--pad/--no-pad", help="--no-pad: plan on the spherized URDF's balls as they "
                              "are and, when a path fails the exact certification, again with the balls of the "
                              "links that collided padded to cover the meshes; --pad: plan on padded balls only."),
+    ball_radius: Optional[float] = BALL_RADIUS_OPTION,
     srdf: Optional[Path] = SRDF_OPTION,
     planner: str = typer.Option("rrt_connect", "--planner", help="Our planner."),
     compare_ompl: bool = typer.Option(False, "--compare-ompl", help="Also run OMPL's RRT-Connect on every problem."),
@@ -47,8 +49,11 @@ def bench_mbm(
         raise PrehensileError(f"{problems}: no such folder or archive of MoveIt problems")
     if spheres is not None and not spheres.is_file():
         raise PrehensileError(f"--spheres {spheres}: file not found")
+    check_ball_radius(ball_radius)
+    if spheres is not None and ball_radius is not None:
+        raise PrehensileError("--ball-radius sizes generated balls: give it or --spheres, not both")
     model = robots.load(robot, srdf)
-    sphere_model = benchmark_spheres(model, spheres, pad)
+    sphere_model = benchmark_spheres(model, spheres, pad, ball_radius)
     with Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
                   console=err_console, transient=True) as bar:
         task = bar.add_task("planning", total=None)
@@ -57,7 +62,8 @@ def bench_mbm(
             bar.update(task, completed=done, total=total, description=f"{run['scenario']} {run['index']:04d}")
 
         report = run_mbm(problems, model, sphere_model, settings, progress)
-    options = {"--robot": robot, "--srdf": srdf, "--spheres": spheres, "--planner": planner, "--budget": budget,
+    options = {"--robot": robot, "--srdf": srdf, "--spheres": spheres, "--ball-radius": ball_radius,
+               "--planner": planner, "--budget": budget,
                "--seed": seed, "--limit": limit, "--json": json_out}
     words = ["prehensile", "bench", "mbm", str(problems)] + ["--compare-ompl"] * compare_ompl + ["--pad"] * pad
     report["command"] = shlex.join(words + [str(w) for k, v in options.items() if v is not None for w in (k, v)])

@@ -28,7 +28,7 @@ from typing import List, Optional
 import numpy as np
 import typer
 
-from prehensile.cli.app import app, console, handles_errors
+from prehensile.cli.app import BALL_RADIUS_OPTION, app, check_ball_radius, console, handles_errors
 from prehensile.errors import PrehensileError, SceneError
 from prehensile.scene.scene import PlacedRobot, Scene
 
@@ -233,10 +233,7 @@ def plan(
     planner: Optional[str] = typer.Option(None, "--planner", help="rrt_connect (to a configuration; the default) "
                                           "or, to a --target pose, ik_rrt (the default) or jplus_rrt."),
     budget: float = typer.Option(1.0, "--budget", help="Search time limit (s)."),
-    ball_radius: Optional[float] = typer.Option(None, "--ball-radius",
-                                                help="Largest ball (m) of the sphere model generated for planning "
-                                                     "(default: 8 balls per link); robots with big primitive "
-                                                     "links such as ARMAR-III's torso want 0.04."),
+    ball_radius: Optional[float] = BALL_RADIUS_OPTION,
     seed: int = typer.Option(0, "--seed", min=0, help="Random seed."),
     out: Path = typer.Option(Path("prehensile-plan"), "--out", help="Folder for path.json, trajectory.json, plan.png."),
 ) -> None:
@@ -263,8 +260,7 @@ def plan(
         raise PrehensileError("--target: give --chain, the chain whose tip goes to the pose")
     if not budget > 0:
         raise PrehensileError(f"--budget: must be positive (s), got {budget}")
-    if ball_radius is not None and not ball_radius > 0:
-        raise PrehensileError(f"--ball-radius: must be positive (m), got {ball_radius}")
+    check_ball_radius(ball_radius)
     check_writable(out, "--out", folder=True)
     path = scene_path(scene)
     loaded = load_scene(path)
