@@ -75,8 +75,9 @@ def solve_ik_hybrid(arms: Sequence[ChainSolver], targets: Sequence[np.ndarray], 
         the free joints) ends at the first arm that fails; a failed result reports the attempt
         that tried the most arms and, of those, came closest (its worst arm, in tolerances:
         :meth:`~prehensile.ik.jacobian.ChainSolver.miss`): ``q`` with the failing arm at its
-        closest, the largest errors over the arms (inf for an arm not tried; both inf, and
-        ``q`` the seed, if no arm was tried at all) and the target indices of the arms tried.
+        closest, the largest errors over the arms tried (an attempt whose first arm failed
+        reports that arm's errors; both inf, and ``q`` the seed, if no arm was tried at all) and
+        the target indices of the arms tried (fewer than the arms when one failed).
     """
     if len(arms) != len(targets) or not arms:
         raise PrehensileError(f"solve_ik_hybrid: {len(arms)} arms but {len(targets)} targets")
@@ -116,7 +117,7 @@ def solve_ik_hybrid(arms: Sequence[ChainSolver], targets: Sequence[np.ndarray], 
                 break
             q, solved = result.q, solved + 1
         untried = len(arms) - len(errors)
-        pos, rot = (np.inf, np.inf) if untried else (max(e[0] for e in errors), max(e[1] for e in errors))
+        pos, rot = (max((e[k] for e in errors), default=np.inf) for k in (0, 1))
         if solved == len(arms) and (is_valid is None or is_valid(q)):
             return IKResult(IKStatus.SUCCESS, q.copy(), q[None].copy(), pos, rot, iterations,
                             clock() - start, reached[0], samples - 1, tuple(reached))
