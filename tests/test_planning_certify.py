@@ -15,7 +15,7 @@ from prehensile.model.builder import JointSpec, LinkSpec, build_model
 from prehensile.model.geometry import Box, Capsule, Geometry, Mesh
 from prehensile.kinematics import forward_kinematics
 from prehensile.planning import AttachedObject, PlanningContext, certify_path
-from prehensile.planning.certify import _cover_distance
+from prehensile.planning.certify import ExactCertifier, _cover_distance
 from prehensile.spatial import make_pose
 
 ALONG_X = np.array([[0.0, 0, 1], [0, 1, 0], [-1, 0, 0]])
@@ -113,6 +113,10 @@ def test_agrees_with_dense_sampling_near_a_concave_mesh(arm):
         assert report.ok == dense, path
         outcomes.add(report.ok)
     assert outcomes == {True, False}
+    # the certifier uses the exact checker's coal geometry of the world: the mesh's BVH is built once
+    assert ctx.certifier._obstacles[0][1] is ctx.exact.obstacle_parts[0].exact
+    with pytest.raises(PrehensileError, match="ExactCertifier: 1 obstacle parts for 2 obstacles"):
+        ExactCertifier(model, [mesh, mesh], np.eye(4), ctx.acm, parts=ctx.exact.obstacle_parts)
 
 
 def test_attached_object_is_certified(arm):

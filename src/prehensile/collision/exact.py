@@ -180,6 +180,37 @@ def robot_parts(model: RobotModel) -> tuple[RobotPart, ...]:
     return _ROBOT_PARTS[model]
 
 
+class ObstaclePart(NamedTuple):
+    """One world obstacle, prepared for coal.
+
+    Attributes:
+        name: the obstacle's name.
+        T_world_shape: (4, 4) its pose in the world.
+        exact: coal geometry of the shape (:func:`coal_geometry`).
+        bound: convex coal geometry containing it (:func:`convex_bound`).
+        convex: ``exact`` is convex (a primitive): ``bound`` is ``exact``.
+        transform: ``T_world_shape`` as a coal transform.
+    """
+
+    name: str
+    T_world_shape: np.ndarray
+    exact: object
+    bound: object
+    convex: bool
+    transform: object
+
+
+def obstacle_parts(obstacles: Sequence[Obstacle]) -> tuple[ObstaclePart, ...]:
+    """The coal geometry of ``obstacles`` (mesh BVHs and hulls take a while for big meshes): build
+    it once and give it to every exact checker and certifier of the same world."""
+    parts = []
+    for o in check_obstacles(obstacles):
+        exact, T = coal_geometry(o.shape), np.asarray(o.T_world_shape, dtype=float)
+        parts.append(ObstaclePart(o.name, T, exact, convex_bound(o.shape, exact), not isinstance(o.shape, Mesh),
+                                  coal_transform(T)))
+    return tuple(parts)
+
+
 class ExactChecker:
     """Exact robot-vs-world and self-collision checks of one robot.
 
@@ -201,11 +232,11 @@ class ExactChecker:
         self.T_world_base = np.eye(4) if T_world_base is None else check_one_pose(T_world_base, "T_world_base")
         self.acm = allowed_collision_matrix(model) if acm is None else np.asarray(acm, dtype=bool)
         self.obstacles = check_obstacles(obstacles)
-        self._obstacles = []  # (name, exact, convex bound, transform)
+        self.obstacle_parts = obstacle_parts(self.obstacles)
+        """The obstacles' coal geometry (:func:`obstacle_parts`), to share with certifiers of this world."""
+        self._obstacles = [(o.name, o.exact, o.bound, o.transform) for o in self.obstacle_parts]
         self._obstacle_bounds = []  # (primitive, pose): the obstacle, or the box holding a mesh
         for o in self.obstacles:
-            exact = coal_geometry(o.shape)
-            self._obstacles.append((o.name, exact, convex_bound(o.shape, exact), coal_transform(o.T_world_shape)))
             T = np.asarray(o.T_world_shape, dtype=float)
             if isinstance(o.shape, Mesh):  # a flat mesh (a floor) gets a flat box, 1 pm thick (a Box needs sides > 0)
                 (T_shape_box,), (half,) = box_cover(geometry_triangles(Geometry(o.shape)), 1)

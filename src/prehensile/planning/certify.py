@@ -40,13 +40,12 @@ from numba import njit
 
 from prehensile.clock import clock
 from prehensile.collision import sphere_kernels as SK
-from prehensile.collision.exact import coal_geometry, coal_transform, convex_bound, enclosing_ball, robot_parts
+from prehensile.collision.exact import ObstaclePart, enclosing_ball, obstacle_parts, robot_parts
 from prehensile.collision.sphere_checker import obstacle_arrays
 from prehensile.collision.spheres import SphereModel
 from prehensile.collision.world import Obstacle
 from prehensile.errors import PrehensileError
 from prehensile.kinematics.kernels import fk_into
-from prehensile.model.geometry import Mesh
 from prehensile.model.robot_model import RobotModel
 from prehensile.planning.context import PlanningContext, motion_weights
 
@@ -104,21 +103,24 @@ class ExactCertifier:
         T_world_base: (4, 4) pose of the robot root.
         acm: (L, L) allowed-collision matrix (True = pair not checked).
         cover: balls covering every link's geometry (``covering``) for cheap lower bounds.
+        parts: the obstacles' coal geometry if already built
+            (:attr:`~prehensile.collision.exact.ExactChecker.obstacle_parts`).
     """
 
     def __init__(self, model: RobotModel, obstacles: Sequence[Obstacle], T_world_base: np.ndarray,
-                 acm: np.ndarray, cover: SphereModel | None = None) -> None:
+                 acm: np.ndarray, cover: SphereModel | None = None,
+                 parts: tuple[ObstaclePart, ...] | None = None) -> None:
         self.model = model
         self.T_world_base = np.asarray(T_world_base, dtype=float)
         self._parts = robot_parts(model)
-        self._obstacles = []
+        parts = obstacle_parts(obstacles) if parts is None else parts
+        if len(parts) != len(obstacles):
+            raise PrehensileError(f"ExactCertifier: {len(parts)} obstacle parts for {len(obstacles)} obstacles")
+        self._obstacles = [(o.transform, o.exact, o.bound, o.convex) for o in parts]
         boxes = []  # per obstacle: world AABB (min xyz, max xyz)
-        for o in obstacles:
-            exact, T = coal_geometry(o.shape), np.asarray(o.T_world_shape, dtype=float)
-            self._obstacles.append((coal_transform(T), exact, convex_bound(o.shape, exact),
-                                    not isinstance(o.shape, Mesh)))
-            exact.computeLocalAABB()
-            lo, hi = np.asarray(exact.aabb_local.min_), np.asarray(exact.aabb_local.max_)
+        for o in parts:
+            o.exact.computeLocalAABB()
+            T, lo, hi = o.T_world_shape, np.asarray(o.exact.aabb_local.min_), np.asarray(o.exact.aabb_local.max_)
             center, half = T[:3, :3] @ (0.5 * (lo + hi)) + T[:3, 3], np.abs(T[:3, :3]) @ (0.5 * (hi - lo))
             boxes.append(np.concatenate([center - half, center + half]))
         pairs, links = [], []  # (part, obstacle or -1, other part or -1); (link a, link b or -1)

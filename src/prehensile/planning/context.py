@@ -535,5 +535,6 @@ class PlanningContext:
             from prehensile.planning.certify import ExactCertifier
 
             self._exact_checkers["certifier"] = ExactCertifier(self.collision_model, self.obstacles,
-                                                               self.T_world_base, self.acm, self.cover_model)
+                                                               self.T_world_base, self.acm, self.cover_model,
+                                                               self.exact.obstacle_parts)
         return self._exact_checkers["certifier"]
