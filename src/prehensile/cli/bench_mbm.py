@@ -63,8 +63,7 @@ def bench_mbm(
 
         report = run_mbm(problems, model, sphere_model, settings, progress)
     options = {"--robot": robot, "--srdf": srdf, "--spheres": spheres, "--ball-radius": ball_radius,
-               "--planner": planner, "--budget": budget,
-               "--seed": seed, "--limit": limit, "--json": json_out}
+               "--planner": planner, "--budget": budget, "--seed": seed, "--limit": limit, "--json": json_out}
     words = ["prehensile", "bench", "mbm", str(problems)] + ["--compare-ompl"] * compare_ompl + ["--pad"] * pad
     report["command"] = shlex.join(words + [str(w) for k, v in options.items() if v is not None for w in (k, v)])
     report["robot"].update(urdf=str(robot), srdf=model.srdf_source,
