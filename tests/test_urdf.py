@@ -2,17 +2,14 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 
-from conftest import MBM, require_shared
+from conftest import MBM, WEDGE, require_shared
 from prehensile.errors import ModelError
 from prehensile.kinematics import forward_kinematics
 from prehensile.model import Box, Capsule, Cylinder, Mesh, Sphere, load_urdf
 
-WEDGE = Path(__file__).parent / "data" / "scenes" / "wedge.obj"
 ARM = """<robot name="arm">
   <link name="base"><collision><geometry><box size="0.2 0.2 0.1"/></geometry></collision></link>
   <link name="upper"><collision><origin xyz="0 0 0.15"/><geometry><cylinder radius="0.04" length="0.3"/></geometry></collision></link>
