@@ -12,6 +12,7 @@ import pytest
 from conftest import WEDGE, part_urdf
 from prehensile.collision import spheres as spheres_module
 from prehensile.collision.acm import rigid_bodies
+from prehensile.collision.exact import ExactChecker
 from prehensile.collision.sphere_checker import SphereChecker
 from prehensile.collision.sphere_fit import geometry_triangles
 from prehensile.collision.world import Obstacle
@@ -144,6 +145,20 @@ def test_generated_spheres_cover_a_mirrored_urdf_mesh(tmp_path, monkeypatch, sca
     spheres = generate_sphere_model(model)
     assert _uncovered(Mesh(WEDGE).trimesh.vertices * scale, *spheres.link_spheres("part")) == 0
     assert_covers(model, spheres, np.random.default_rng(0))
+
+
+def test_a_urdf_capsule_of_length_0_is_one_ball_to_both_checkers(tmp_path):
+    model = load_path(part_urdf(tmp_path, '<capsule radius="0.05" length="0"/>'))
+    spheres = generate_sphere_model(model, cache=False)
+    centers, radii = spheres.link_spheres("part")
+    assert np.allclose(centers, 0.0) and radii.tolist() == [0.05]
+    assert_covers(model, spheres, np.random.default_rng(0))
+    q = np.zeros(1)
+    for x, distance in ((0.1, 0.03), (0.06, -0.01)):  # a 0.02 m ball beside the capsule, or overlapping it
+        obstacles = [Obstacle("ball", Sphere(0.02), make_pose(position=[x, 0.0, 0.0]))]
+        exact = ExactChecker(model, obstacles)
+        assert exact.min_distance(q) == pytest.approx(distance)
+        assert exact.is_free(q) == SphereChecker(model, obstacles, spheres=spheres).is_free(q) == (distance > 0)
 
 
 @needs_mbm
