@@ -9,6 +9,7 @@ import pytest
 REPO = Path(__file__).resolve().parents[1]
 SHARED = REPO.parent / "shared"
 MBM = SHARED / "bench" / "mbm"
+WEDGE = REPO / "tests" / "data" / "scenes" / "wedge.obj"  # tetrahedron: x, y, z >= 0, x + y + z <= 0.1 (m)
 
 
 def require_shared(path: Path = SHARED) -> Path:
@@ -27,3 +28,15 @@ def erd_robot(relative: str) -> Path:
         if candidate.is_file():
             return candidate
     pytest.skip(f"example-robot-data robot {relative} not installed")
+
+
+def part_urdf(directory: Path, geometry: str) -> Path:
+    """A URDF file written in ``directory``: link 'part', whose collision geometry is the URDF
+    element ``geometry`` (e.g. '<sphere radius="0.1"/>'), on a revolute joint about z at the
+    origin of link 'base'."""
+    path = directory / "part.urdf"
+    path.write_text(f"""<robot name="part"><link name="base"/>
+  <link name="part"><collision><geometry>{geometry}</geometry></collision></link>
+  <joint name="turn" type="revolute"><parent link="base"/><child link="part"/><axis xyz="0 0 1"/>
+    <limit lower="-3" upper="3"/></joint></robot>""")
+    return path

@@ -2,12 +2,11 @@
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 import numpy as np
 import pytest
 import trimesh
 
+from conftest import WEDGE, part_urdf
 from prehensile.collision.acm import allowed_collision_matrix, compute_acm, rigid_bodies
 from prehensile.collision.exact import ExactChecker
 from prehensile.collision.sphere_checker import SphereChecker
@@ -15,6 +14,7 @@ from prehensile.collision.world import Obstacle
 from prehensile.errors import PrehensileError
 from prehensile.model.builder import JointSpec, LinkSpec, build_model
 from prehensile.model.geometry import Box, Capsule, Cylinder, Geometry, Mesh, Sphere
+from prehensile.robots import load_path
 from prehensile.spatial import make_pose, rpy_to_matrix
 
 
@@ -249,7 +249,6 @@ def test_a_flat_mesh_floor_is_bounded_by_a_flat_box():
 
 @pytest.mark.parametrize("obstacles, message", [
     ([Obstacle("box", Box((0.1, 0.1, 0.1)), np.full((4, 4), np.nan))], "'box': T_world_shape"),
-    ([Obstacle("mirror", replace(_box_mesh((0.1, 0.1, 0.1)), scale=(1.0, -1.0, 1.0)), np.eye(4))], "positive size"),
     (Obstacle("box", Box((0.1, 0.1, 0.1)), np.eye(4)), "got one Obstacle"),
     ([Obstacle("box", Box((0.1, 0.1, 0.1)), np.eye(3))], "T_world_shape"),
     ([Obstacle("empty", Mesh.from_arrays(np.zeros((0, 3)), np.zeros((0, 3))), np.eye(4))], r"Mesh \(with triangles\)"),
@@ -258,6 +257,34 @@ def test_bad_obstacles_are_errors_naming_them(obstacles, message):
     for checker in (ExactChecker, SphereChecker):
         with pytest.raises(PrehensileError, match=message):
             checker(_arm(), obstacles)
+
+
+@pytest.mark.parametrize("scale", [(1.0, -1.0, 1.0), (-1.0, -1.0, -1.0)])
+def test_a_mirrored_urdf_mesh_collides_where_its_mirror_image_is(tmp_path, scale):
+    """The wedge fills a corner of its frame; mirrored by the URDF scale it fills the mirrored
+    corner. A ball crossing the slanted face there touches it (the hull depth is exact: the
+    wedge is convex); the same ball beside the unmirrored wedge does not."""
+    model = load_path(part_urdf(tmp_path, f'<mesh filename="{WEDGE}" scale="{" ".join(map(str, scale))}"/>'))
+    q, centre, radius = np.zeros(1), np.array([0.03, 0.05, 0.03]), 0.02
+    depth = radius - (centre.sum() - 0.1) / np.sqrt(3.0)  # beyond the face x + y + z = 0.1 m
+    mirrored = ExactChecker(model, [Obstacle("ball", Sphere(radius), make_pose(position=centre * scale))])
+    assert not mirrored.is_free(q) and mirrored.min_distance(q) == pytest.approx(-depth)
+    assert mirrored.collisions(q) == [("part", "ball", pytest.approx(depth))]
+    plain = ExactChecker(model, [Obstacle("ball", Sphere(radius), make_pose(position=centre))])
+    nearest = np.where(np.asarray(scale) > 0, centre, 0.0)  # on the wedge's face in the plane y = 0, or its tip
+    assert plain.is_free(q) and plain.min_distance(q) == pytest.approx(np.linalg.norm(centre - nearest) - radius)
+
+
+def test_a_mirrored_mesh_obstacle_is_checked_where_its_mirror_image_is():
+    """A wedge (sides 0.2 m) beside the upper link's ball (centre (0.5, 0, 0.3), radius 0.1):
+    mirrored in y it reaches into the ball, unmirrored it stays 0.05 m away."""
+    q, pose = np.zeros(2), make_pose(position=[0.45, 0.15, 0.25])
+    depth = 0.1 - (0.05 + 0.15 + 0.05 - 0.2) / np.sqrt(3.0)  # the ball's centre is beyond the slanted face
+    for scale, free, distance in (((2.0, 2.0, 2.0), True, 0.05), ((2.0, -2.0, 2.0), False, -depth)):
+        obstacles = [Obstacle("wedge", Mesh(WEDGE, scale), pose)]
+        exact = ExactChecker(_arm(), obstacles)
+        assert exact.is_free(q) == free and SphereChecker(_arm(), obstacles).is_free(q) == free
+        assert exact.min_distance(q) == pytest.approx(distance)
 
 
 def test_a_pose_given_as_nested_lists_is_a_pose():

@@ -9,8 +9,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from conftest import WEDGE, part_urdf
 from prehensile.collision import spheres as spheres_module
 from prehensile.collision.acm import rigid_bodies
+from prehensile.collision.exact import ExactChecker
 from prehensile.collision.sphere_checker import SphereChecker
 from prehensile.collision.sphere_fit import geometry_triangles
 from prehensile.collision.world import Obstacle
@@ -22,6 +24,7 @@ from prehensile.model import load_urdf
 from prehensile.model.builder import JointSpec, LinkSpec, build_model
 from prehensile.kinematics import forward_kinematics
 from prehensile.model.geometry import Box, Capsule, Cylinder, Geometry, Mesh, Sphere
+from prehensile.robots import load_path
 from prehensile.spatial import make_pose, rpy_to_matrix
 
 MBM = Path(__file__).resolve().parents[2] / "shared" / "bench" / "mbm" / "panda"
@@ -127,6 +130,35 @@ def test_max_radius_is_a_target_and_the_links_above_it_are_logged(caplog):
     assert column.max() == pytest.approx(0.08)  # the ball primitive keeps its radius
     assert "max_radius 0.070 m on column 0.080 m" in caplog.text and "base" not in caplog.text
     assert_covers(model, spheres, np.random.default_rng(0))
+
+
+@pytest.mark.parametrize("scale", [(1.0, -1.0, 1.0), (-1.0, -1.0, -1.0)])
+def test_generated_spheres_cover_a_mirrored_urdf_mesh(tmp_path, monkeypatch, scale):
+    """The balls of a mesh mirrored by its URDF scale cover the mirror image, also when the
+    unmirrored mesh's balls are in the cache."""
+    monkeypatch.setenv("PREHENSILE_CACHE", str(tmp_path))
+    for name in ("plain", "mirrored"):
+        (tmp_path / name).mkdir()
+    generate_sphere_model(load_path(part_urdf(tmp_path / "plain", f'<mesh filename="{WEDGE}"/>')))
+    mesh = f'<mesh filename="{WEDGE}" scale="{" ".join(map(str, scale))}"/>'
+    model = load_path(part_urdf(tmp_path / "mirrored", mesh))
+    spheres = generate_sphere_model(model)
+    assert _uncovered(Mesh(WEDGE).trimesh.vertices * scale, *spheres.link_spheres("part")) == 0
+    assert_covers(model, spheres, np.random.default_rng(0))
+
+
+def test_a_urdf_capsule_of_length_0_is_one_ball_to_both_checkers(tmp_path):
+    model = load_path(part_urdf(tmp_path, '<capsule radius="0.05" length="0"/>'))
+    spheres = generate_sphere_model(model, cache=False)
+    centers, radii = spheres.link_spheres("part")
+    assert np.allclose(centers, 0.0) and radii.tolist() == [0.05]
+    assert_covers(model, spheres, np.random.default_rng(0))
+    q = np.zeros(1)
+    for x, distance in ((0.1, 0.03), (0.06, -0.01)):  # a 0.02 m ball beside the capsule, or overlapping it
+        obstacles = [Obstacle("ball", Sphere(0.02), make_pose(position=[x, 0.0, 0.0]))]
+        exact = ExactChecker(model, obstacles)
+        assert exact.min_distance(q) == pytest.approx(distance)
+        assert exact.is_free(q) == SphereChecker(model, obstacles, spheres=spheres).is_free(q) == (distance > 0)
 
 
 @needs_mbm

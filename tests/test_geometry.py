@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from conftest import WEDGE
 from prehensile.errors import ModelError
-from prehensile.model.geometry import Box, Capsule, Cylinder, Mesh, Sphere
-
+from prehensile.model.geometry import Box, Capsule, Cylinder, Mesh, Sphere, shape_to_trimesh
 
 @pytest.mark.parametrize("build, message", [
     (lambda: Box((0.1, -0.1, 0.1)), r"Box: size must be three finite side lengths > 0 \(m\), got \(0.1, -0.1, 0.1\)"),
@@ -34,3 +34,15 @@ def test_good_sizes_are_kept():
     assert Sphere(np.float64(0.05)).radius == 0.05 and Cylinder(0.1, 0.3).length == 0.3
     assert Capsule(0.02, 0.0).length == 0.0  # a ball, as scene files accept
     assert Mesh(None, (-1.0, 1.0, 0.001)).scale == (-1.0, 1.0, 0.001)  # a negative factor mirrors, as in URDF
+
+
+@pytest.mark.parametrize("scale", [(1.0, -1.0, 1.0), (-1.0, -1.0, -1.0), (-2.0, 0.5, 3.0)])
+def test_a_mirrored_mesh_is_the_mirror_image_with_outward_faces(scale):
+    """Scaling by factors of negative product turns triangles inside out unless their winding is
+    reversed: the signed volume and the outward normals show it."""
+    plain = Mesh(WEDGE).trimesh
+    for mesh in (Mesh(WEDGE, scale).trimesh, shape_to_trimesh(Mesh(WEDGE, scale))):
+        assert np.allclose(mesh.vertices, plain.vertices * scale)
+        assert mesh.volume == pytest.approx(plain.volume * abs(np.prod(scale)))  # signed: > 0
+        outward = np.einsum("ij,ij->i", mesh.face_normals, mesh.triangles_center - mesh.vertices.mean(axis=0))
+        assert np.all(outward > 0)  # the wedge is convex: every face looks away from its centre

@@ -26,7 +26,7 @@ from prehensile.planning.kernels import BLOCKED, FREE, NO_LIMIT, _scales, motion
 from prehensile.planning.shortcut import prune, waypoint_marks
 from prehensile.spatial import make_pose
 
-from conftest import MBM, require_shared
+from conftest import MBM, WEDGE, require_shared
 
 ALONG_X = np.array([[0.0, 0, 1], [0, 1, 0], [-1, 0, 0]])  # rotates a shape's z axis onto x
 FAST = RRTConnectSettings(time_budget_s=2.0)
@@ -307,8 +307,10 @@ def test_attached_objects_are_validated_and_may_be_several_shapes(arm):
         AttachedObject("plate", "l3", bar, 2.0 * np.eye(4))
     dumbbell = AttachedObject("dumbbell", "l3", [bar, Geometry(ball, make_pose(position=[0.1, 0, 0]))])
     assert [g.shape for g in dumbbell.geometries()] == [bar, ball]
-    ctx = PlanningContext(model, [], spheres=spheres, attached=[dumbbell])
+    mirrored = AttachedObject("wedge", "l3", Mesh(WEDGE, (1.0, -1.0, 1.0)))  # a mirror image, as URDF allows
+    ctx = PlanningContext(model, [], spheres=spheres, attached=[dumbbell, mirrored])
     assert len(ctx.collision_model.collisions[ctx.collision_model.link_index("attached/dumbbell")]) == 2
+    assert ctx.collision_model.collisions[ctx.collision_model.link_index("attached/wedge")][0].shape.scale[1] == -1.0
 
 
 def test_goal_the_balls_reject_is_reached_by_a_certified_escape(arm):

@@ -87,6 +87,14 @@ def test_round_trip_to_another_folder(tmp_path):
     assert "../wedge.obj" in text and "../two_link.urdf" in text
 
 
+def test_a_mirrored_mesh_round_trips(tmp_path):
+    """A negative scale factor mirrors the mesh, as in URDF; what save_scene writes loads again."""
+    scene = load_scene(_write(tmp_path, _mutate(lambda d: d["obstacles"][1]["shape"].update(scale=[1.0, -2.0, 1.5]))))
+    save_scene(scene, tmp_path / "copy.yaml")
+    for loaded in (scene, load_scene(tmp_path / "copy.yaml")):
+        assert loaded.obstacles[1].geometries[0].shape.scale == (1.0, -2.0, 1.5)
+
+
 def test_bundled_robot_by_name_round_trips(tmp_path):
     pytest.importorskip("prehensile.robots")
     from prehensile import robots
@@ -123,6 +131,10 @@ CASES = [
     ("negative radius", lambda d: d["objects"][0]["shape"].update(radius=-0.1), ["objects[0] 'ball'.shape", "radius", "positive"]),
     ("zero length", lambda d: d["obstacles"][0]["shapes"][1].update(length=0), ["obstacles[0] 'table'.shapes[1]", "length", "positive"]),
     ("negative capsule", lambda d: d["objects"][1]["shape"].update(length=-0.1), ["objects[1] 'pill'.shape", "length", ">= 0"]),
+    ("zero mesh scale", lambda d: d["obstacles"][1]["shape"].update(scale=[1.0, 0.0, 1.0]),
+     ["obstacles[1] 'shelf'.shape (mesh).scale", "every factor must be non-zero", "[1.0, 0.0, 1.0]"]),
+    ("zero mesh scale number", lambda d: d["obstacles"][1]["shape"].update(scale=0),
+     ["'shelf'.shape (mesh).scale", "non-zero"]),
     ("unknown shape type", lambda d: d["objects"][0]["shape"].update(type="cone"), ["objects[0] 'ball'", "unknown shape type 'cone'", "box, sphere, cylinder, capsule, mesh"]),
     ("typo in body key", lambda d: d["objects"][0].update(shpe={}), ["objects[0] 'ball'", "unknown key 'shpe'", "did you mean 'shape'", "valid keys"]),
     ("typo in shape key", lambda d: d["objects"][0]["shape"].update(raduis=1), ["objects[0] 'ball'.shape", "unknown key 'raduis'", "radius"]),

@@ -2,17 +2,14 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 
-from conftest import MBM, require_shared
+from conftest import MBM, WEDGE, require_shared
 from prehensile.errors import ModelError
 from prehensile.kinematics import forward_kinematics
 from prehensile.model import Box, Capsule, Cylinder, Mesh, Sphere, load_urdf
 
-WEDGE = Path(__file__).parent / "data" / "scenes" / "wedge.obj"
 ARM = """<robot name="arm">
   <link name="base"><collision><geometry><box size="0.2 0.2 0.1"/></geometry></collision></link>
   <link name="upper"><collision><origin xyz="0 0 0.15"/><geometry><cylinder radius="0.04" length="0.3"/></geometry></collision></link>
@@ -49,6 +46,11 @@ def test_structure_joint_types_and_geometry(tmp_path):
     shapes = [type(g.shape) for geoms in model.collisions for g in geoms]
     assert shapes == [Box, Cylinder, Capsule]
     assert isinstance(model.visuals[model.link_index("slider")][0].shape, Sphere)
+
+
+def test_a_capsule_of_length_0_is_a_ball_as_in_scene_files(tmp_path):
+    model = load_urdf(write(tmp_path, ARM.replace('radius="0.03" length="0.2"', 'radius="0.03" length="0"')))
+    assert model.collisions[model.link_index("lower")][0].shape == Capsule(0.03, 0.0)
 
 
 def test_mimic_finger_moves_opposite(tmp_path):
@@ -102,6 +104,12 @@ def test_chain_from_srdf_and_disabled_pairs(tmp_path):
         (lambda t: t.replace('radius="0.04" length="0.3"', 'radius="-0.04" length="0.3"'), "link 'upper' <collision> #0 <cylinder>: must be positive"),
         (lambda t: t.replace('radius="0.04" length="0.3"', 'radius="inf" length="0.3"'),
          "link 'upper' <collision> #0 <cylinder>: must be positive and finite, got inf"),
+        (lambda t: t.replace('radius="0.04" length="0.3"', 'radius="0.04" length="0"'),
+         "link 'upper' <collision> #0 <cylinder> length: must be positive and finite, got 0.0"),
+        (lambda t: t.replace('radius="0.03" length="0.2"', 'radius="0.03" length="-0.2"'),
+         "link 'lower' <collision> #0 <capsule> length: must be >= 0 and finite, got -0.2"),
+        (lambda t: t.replace('radius="0.03" length="0.2"', 'radius="0.03" length="inf"'),
+         "link 'lower' <collision> #0 <capsule> length: must be >= 0 and finite, got inf"),
         (lambda t: t.replace('<box size="0.2 0.2 0.1"/>', '<mesh filename="meshes/missing.stl"/>'), "link 'base' <collision> #0 <mesh>: file 'meshes/missing.stl' not found"),
         (lambda t: t.replace('<box size="0.2 0.2 0.1"/>', f'<mesh filename="{WEDGE}" scale="0 1 1"/>'),
          "link 'base' <collision> #0 <mesh> scale: every factor must be non-zero"),

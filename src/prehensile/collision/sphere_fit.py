@@ -260,7 +260,7 @@ def cover_primitive(geometry: Geometry, budget: int = 8) -> tuple[np.ndarray, np
         TypeError: ``geometry.shape`` is a mesh (use :func:`cover_triangles`).
     """
     shape = geometry.shape
-    if isinstance(shape, Sphere):
+    if isinstance(shape, Sphere) or (isinstance(shape, Capsule) and shape.length == 0):  # a ball
         centers, radii = np.zeros((1, 3)), np.array([float(shape.radius)])
     elif isinstance(shape, Box):
         centers, radii = _box_cover(np.asarray(shape.size, dtype=float), budget)

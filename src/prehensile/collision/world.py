@@ -43,8 +43,8 @@ SHAPE_SIZES = ("needs a positive size (m); valid shapes: Box(size (3,)), Sphere(
 
 
 def positive_size(shape: Shape) -> bool:
-    """``shape`` is one of the shapes (each checks its sizes when built) and, if a mesh, has
-    positive scale factors and triangles."""
+    """``shape`` is one of the shapes (each checks its sizes when built) and, if a mesh
+    (mirrored by negative scale factors or not), has triangles."""
     if isinstance(shape, Mesh):
-        return bool(np.all(np.asarray(shape.scale, dtype=float) > 0)) and len(shape.trimesh.faces) > 0
+        return len(shape.trimesh.faces) > 0
     return isinstance(shape, (Box, Sphere, Cylinder, Capsule))

@@ -78,7 +78,8 @@ class Capsule:
 @dataclass(frozen=True, eq=False)
 class Mesh:
     """Triangle mesh read from ``path`` and scaled per axis by ``scale`` (three finite non-zero
-    factors; a negative one mirrors, as URDF allows).
+    factors; a negative one mirrors, as URDF allows, and a mirrored mesh keeps its faces
+    outward: their winding is reversed when the factors' product is negative).
 
     The file is read on first use of :attr:`trimesh`. An in-memory mesh (e.g. one compiled by
     MuJoCo) has ``path=None`` and carries ``vertices`` (V, 3) in m and ``faces`` (F, 3) vertex
@@ -119,7 +120,7 @@ class Mesh:
             if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
                 raise ModelError(f"mesh {self.path}: no triangles")
         mesh = loaded.copy()
-        mesh.apply_scale(np.asarray(self.scale, dtype=float))
+        mesh.apply_scale(np.asarray(self.scale, dtype=float))  # reverses the winding of a mirror image
         return mesh
 
 

@@ -1,8 +1,9 @@
 """URDF loader (standard library XML parser), with optional SRDF.
 
-Reads links with visual and collision geometry (box, sphere, cylinder, capsule, mesh with
-scale), joints (revolute, continuous, prismatic, fixed, planar; mimic), limits. Floating joints
-are rejected: place a free-flying robot with a scene base pose instead.
+Reads links with visual and collision geometry (box, sphere, cylinder, capsule of length >= 0
+(0: a ball), mesh with scale (a negative factor mirrors)), joints (revolute, continuous,
+prismatic, fixed, planar; mimic), limits. Floating joints are rejected: place a free-flying
+robot with a scene base pose instead.
 """
 
 from __future__ import annotations
@@ -29,9 +30,10 @@ def _origin(element: ET.Element | None, where: str) -> np.ndarray:
     return make_pose(rpy_to_matrix(rpy), xyz)
 
 
-def _positive(value: float, where: str) -> float:
-    if not 0 < value < np.inf:
-        raise ModelError(f"{where}: must be positive and finite, got {value}")
+def _size(value: float, where: str, zero: bool = False) -> float:
+    """``value`` (m) if finite and > 0 (>= 0 with ``zero``); ModelError naming ``where`` otherwise."""
+    if not ((value >= 0 if zero else value > 0) and value < np.inf):
+        raise ModelError(f"{where}: must be {'>= 0' if zero else 'positive'} and finite, got {value}")
     return value
 
 
@@ -44,12 +46,12 @@ def _geometry(element: ET.Element, base_dir: Path, where: str) -> Geometry | Non
     w = f"{where} <{tag}>"
     if tag == "box":
         size = floats(shape_el.get("size"), 3, w)
-        shape = Box(tuple(_positive(float(s), w) for s in size))
+        shape = Box(tuple(_size(float(s), w) for s in size))
     elif tag == "sphere":
-        shape = Sphere(_positive(number(shape_el, "radius", w), w))
+        shape = Sphere(_size(number(shape_el, "radius", w), w))
     elif tag in ("cylinder", "capsule"):
-        radius = _positive(number(shape_el, "radius", w), w)
-        length = _positive(number(shape_el, "length", w), w)
+        radius = _size(number(shape_el, "radius", w), w)
+        length = _size(number(shape_el, "length", w), f"{w} length", zero=tag == "capsule")  # 0: a ball
         shape = Cylinder(radius, length) if tag == "cylinder" else Capsule(radius, length)
     elif tag == "mesh":
         path = resolve_uri(required(shape_el, "filename", w), base_dir, w)

@@ -16,7 +16,8 @@ Shape mapping (``type`` plus the fields of that type, sizes in m, all > 0)::
     {type: sphere, radius: r}
     {type: cylinder, radius: r, length: l}        # axis along z, centred
     {type: capsule, radius: r, length: l}         # l = length of the cylindrical part (0: a ball)
-    {type: mesh, file: path, scale: s or [sx, sy, sz]}   # path relative to the scene file
+    {type: mesh, file: path, scale: s or [sx, sy, sz]}   # path relative to the scene file; scale
+                                                         # factors non-zero, a negative one mirrors
     pose: {...}                                   # optional: shape pose in the body frame
     name: "..."                                   # optional
 """
@@ -173,9 +174,11 @@ def _read_mesh(entry: Mapping, base_dir: Path, where: str) -> Mesh:
         raise SceneError(f"{where}.file: mesh file '{file}' not found (looked for {path})")
     scale = entry.get("scale", 1.0)
     if isinstance(scale, (list, tuple)):
-        scale3 = numbers(scale, 3, f"{where}.scale", positive=True)
+        scale3 = numbers(scale, 3, f"{where}.scale")
     else:
-        scale3 = np.full(3, number(scale, f"{where}.scale", positive=True))
+        scale3 = np.full(3, number(scale, f"{where}.scale"))
+    if not np.all(scale3 != 0.0):  # as in URDF: a negative factor mirrors, zero flattens the mesh
+        raise SceneError(f"{where}.scale: every factor must be non-zero (a negative one mirrors), got {_show(scale)}")
     mesh = Mesh(path.resolve(), tuple(float(s) for s in scale3))
     try:
         mesh.trimesh  # read now (it is kept), so that a file without triangles names its entry
