@@ -135,6 +135,7 @@ def test_an_end_only_coarse_balls_reject_is_explained_and_finer_balls_plan(tmp_p
     (["plan_demo", "--goal", *IN_THE_WALL, "--target", *BEHIND_THE_WALL], "not both"),
     (["plan_demo", "--seed", "-1"], "--seed"),
     (["plan_demo", "--ball-radius", "0"], "--ball-radius: must be positive"),
+    (["plan_demo", "--budget", "inf"], "--budget: must be a positive, finite time (s), got inf"),
     (["no_such_scene"], "bundled scenes:"),
 ])
 def test_bad_input_exits_2(args, message, tmp_path):

@@ -258,8 +258,8 @@ def plan(
             f"a configuration; for a --target pose use {' or '.join(POSE_PLANNERS)}"))
     if target and chain is None:
         raise PrehensileError("--target: give --chain, the chain whose tip goes to the pose")
-    if not budget > 0:
-        raise PrehensileError(f"--budget: must be positive (s), got {budget}")
+    if not (budget > 0 and np.isfinite(budget)):  # an infinite budget never ends a search for an unreachable goal
+        raise PrehensileError(f"--budget: must be a positive, finite time (s), got {budget}")
     check_ball_radius(ball_radius)
     check_writable(out, "--out", folder=True)
     path = scene_path(scene)
