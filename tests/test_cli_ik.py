@@ -76,6 +76,13 @@ def test_unreachable_target_exits_1_with_status():
     assert "status timeout" in result.stdout
 
 
+def test_an_infinite_budget_is_refused():
+    """It would never end the restarts for an unreachable target."""
+    _, values = _reachable("panda", "arm")
+    result = _run("ik", "panda", "--chain", "arm", "--target", *values, "--budget", "inf")
+    assert result.exit_code == 2 and "--budget: must be a positive, finite time (s), got inf" in result.stderr
+
+
 def test_unknown_chain_exits_2_listing_chains():
     result = _run("ik", "nao", "--chain", "tentacle", "--target", 0.1, 0.1, 0.1)
     assert result.exit_code == 2

@@ -11,6 +11,7 @@ from typer.testing import CliRunner
 from prehensile.cli.main import app
 from prehensile.errors import SceneError
 from prehensile.kinematics import link_pose
+from prehensile.planning import PlanningContext
 from prehensile.scene.files import bundled_scene_path, load_scene, robot_goals
 from prehensile.spatial import rpy_to_matrix
 
@@ -119,6 +120,23 @@ def test_an_end_only_coarse_balls_reject_is_explained_and_finer_balls_plan(tmp_p
     assert json.loads((tmp_path / "path.json").read_text())["status"] == "success"
 
 
+def test_a_search_that_ran_out_of_time_does_not_blame_its_start(tmp_path):
+    """NAO's start is free on the meshes but its default balls touch (torso, LBicep): J+-RRT
+    leaves it along a certified escape, then searches for a pose out of reach until the budget
+    ends. The start, and finer balls, are not why it timed out."""
+    scene = tmp_path / "nao.yaml"
+    scene.write_text("robots:\n  - {robot: nao, joints: {LShoulderPitch: 1.0, LShoulderRoll: 0.3}}\n")
+    robot = load_scene(scene).robots[0]
+    context = PlanningContext(robot.model, [], joints="left_arm", q_ref=robot.configuration)
+    assert "conservative balls collide" in context.why_invalid(robot.configuration)
+    result = _plan(scene, "--chain", "left_arm", "--target", "1", "1", "1", "0", "0", "0", "--planner", "jplus_rrt",
+                   "--budget", "0.3", "--out", tmp_path / "out")
+    assert result.exit_code == 1, result.output
+    path = json.loads((tmp_path / "out" / "path.json").read_text())
+    assert path["status"] == "timeout" and path["stats"]["iterations"] > 0
+    assert path["reason"] is None and "--ball-radius" not in result.output
+
+
 @pytest.mark.parametrize("args, message", [
     (["plan_demo", "--goal", "0.1", "0.2"], "expected 7 values"),
     (["plan_demo", "--goal", "a", "b"], "expected numbers"),
@@ -135,6 +153,7 @@ def test_an_end_only_coarse_balls_reject_is_explained_and_finer_balls_plan(tmp_p
     (["plan_demo", "--goal", *IN_THE_WALL, "--target", *BEHIND_THE_WALL], "not both"),
     (["plan_demo", "--seed", "-1"], "--seed"),
     (["plan_demo", "--ball-radius", "0"], "--ball-radius: must be positive"),
+    (["plan_demo", "--budget", "inf"], "--budget: must be a positive, finite time (s), got inf"),
     (["no_such_scene"], "bundled scenes:"),
 ])
 def test_bad_input_exits_2(args, message, tmp_path):

@@ -169,7 +169,8 @@ def test_multi_eef_rrt_names_missing_samplers_and_contexts(panda_scene):
 
 
 def test_settings_are_validated():
-    for bad in ({"time_budget_s": -1.0}, {"ik_attempts": 0}, {"first_round_iterations": 0}):
+    # an infinite budget would search forever for an unreachable pose, or fail in the inner search
+    for bad in ({"time_budget_s": -1.0}, {"time_budget_s": np.inf}, {"ik_attempts": 0}, {"first_round_iterations": 0}):
         with pytest.raises(PrehensileError, match="IKRRTSettings: the budgets .*must be positive"):
             IKRRTSettings(**bad)
     for bad in ({"goal_probability": 2.0}, {"time_budget_s": 0.0}, {"max_nodes": 0}):

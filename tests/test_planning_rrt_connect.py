@@ -275,6 +275,8 @@ def test_search_resumes_its_trees_and_takes_goals_added_later(arm):
     for budget in (0.0, -1.0, float("nan"), "1"):
         with pytest.raises(PrehensileError, match="solve: time_budget_s must be a positive number"):
             search.solve(budget)
+    with pytest.raises(PrehensileError, match="RRTConnectSettings: invalid values"):  # not later, in solve
+        RRTConnectSettings(time_budget_s=float("inf"))
     result = search.solve(2.0)
     assert result.goal_index == 1  # rows count over every goal added
     _check_result(ctx, result, start, reachable)

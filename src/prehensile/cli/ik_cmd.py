@@ -52,8 +52,8 @@ def solve_query(model: RobotModel, chain: str, target: np.ndarray, method: str, 
     """
     if method not in METHODS:
         raise PrehensileError(f"--method: unknown IK method '{method}'; valid: {', '.join(METHODS)}")
-    if not budget > 0:
-        raise PrehensileError(f"--budget: must be positive (s), got {budget}")
+    if not (budget > 0 and np.isfinite(budget)):  # an infinite budget never ends a search for an unreachable target
+        raise PrehensileError(f"--budget: must be a positive, finite time (s), got {budget}")
     position_only = target.shape == (3,)
     if method == "analytic" and position_only:
         raise PrehensileError("--method analytic solves poses: give --target x y z roll pitch yaw")

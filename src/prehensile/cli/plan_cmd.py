@@ -148,17 +148,20 @@ def plan_report(result, ctx, scene: Path, robot: PlacedRobot, q_goal: np.ndarray
         "fixed_joints": {j: float(space.q_ref[robot.model.joint_index(j)]) for j in fixed},
         "path_length_m": space.path_length(space.active(result.path)) if result.success else None,
         "stats": dataclasses.asdict(result.stats),
-        "reason": _end_reason(result.status, ctx, robot.configuration, q_goal),
+        "reason": _end_reason(result, ctx, robot.configuration, q_goal),
     }
 
 
-def _end_reason(status, ctx, q_start: np.ndarray, q_goal: np.ndarray | None) -> str | None:
+def _end_reason(result, ctx, q_start: np.ndarray, q_goal: np.ndarray | None) -> str | None:
     """Why the planner could not use the start or goal, "start: ..." / "goal: ...": for an
     invalid one, or for a timeout spent searching a certified escape from an end that only the
-    sphere model rejects (finer balls, ``--ball-radius``, may then plan); for a target no IK
-    solution reached; None otherwise."""
+    sphere model rejects (no search iteration ran; finer balls, ``--ball-radius``, may then
+    plan); for a target no IK solution reached; None otherwise."""
     from prehensile.planning import PlanStatus
 
+    status = result.status
+    if status is PlanStatus.TIMEOUT and result.stats.iterations:  # the ends were usable: the search ran out
+        return None
     if status is PlanStatus.NO_GOAL_CONFIGURATION:
         return ("goal: IK found no configuration that puts the chain's tip at the target and is free within the "
                 "budget (the target may be out of reach, or every solution found collides)")
@@ -258,8 +261,8 @@ def plan(
             f"a configuration; for a --target pose use {' or '.join(POSE_PLANNERS)}"))
     if target and chain is None:
         raise PrehensileError("--target: give --chain, the chain whose tip goes to the pose")
-    if not budget > 0:
-        raise PrehensileError(f"--budget: must be positive (s), got {budget}")
+    if not (budget > 0 and np.isfinite(budget)):  # an infinite budget never ends a search for an unreachable goal
+        raise PrehensileError(f"--budget: must be a positive, finite time (s), got {budget}")
     check_ball_radius(ball_radius)
     check_writable(out, "--out", folder=True)
     path = scene_path(scene)

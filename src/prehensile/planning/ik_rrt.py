@@ -76,10 +76,10 @@ class IKRRTSettings:
     rrt: RRTConnectSettings = RRTConnectSettings()
 
     def __post_init__(self) -> None:
-        if not (self.time_budget_s > 0 and self.ik_budget_s > 0 and self.ik_attempts >= 1
+        if not (0 < self.time_budget_s < np.inf and self.ik_budget_s > 0 and self.ik_attempts >= 1
                 and self.first_round_iterations >= 1):
             raise PrehensileError(f"IKRRTSettings: the budgets (s), attempts and iterations must be positive, "
-                                  f"got {self}")
+                                  f"time_budget_s finite, got {self}")
 
 
 class _Search:

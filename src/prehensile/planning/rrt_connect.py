@@ -108,7 +108,7 @@ class RRTConnectSettings:
     escape: bool = True
 
     def __post_init__(self) -> None:
-        if not (self.time_budget_s > 0 and self.step > 0 and self.eager_checks >= 1 and self.max_nodes >= 2
+        if not (0 < self.time_budget_s < np.inf and self.step > 0 and self.eager_checks >= 1 and self.max_nodes >= 2
                 and self.shortcut_iterations >= 0
                 and self.shortcut_time_s >= 0 and self.certify_retries >= 0):
             raise PrehensileError(f"RRTConnectSettings: invalid values {self}")
