@@ -210,6 +210,8 @@ def test_a_timeout_names_the_end_only_the_balls_reject(tmp_path):
     record = _record(prepared, PlanResult(PlanStatus.TIMEOUT, np.zeros((0, model.dof)), PlanStats()), 1.0,
                      MBMSettings())
     assert record["reason"].startswith("start: free on the exact geometry, but the sphere model's conservative balls")
+    searched = PlanResult(PlanStatus.TIMEOUT, np.zeros((0, model.dof)), PlanStats(iterations=50))
+    assert "reason" not in _record(prepared, searched, 1.0, MBMSettings())  # the search ran: not the start's fault
 
 
 @pytest.mark.parametrize("goal, message", [
