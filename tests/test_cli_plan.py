@@ -9,9 +9,11 @@ import pytest
 from typer.testing import CliRunner
 
 from prehensile.cli.main import app
+from prehensile.collision.exact import ExactChecker
 from prehensile.errors import SceneError
 from prehensile.kinematics import link_pose
 from prehensile.planning import PlanningContext
+from prehensile.planning.trajectory import model_limits, time_parameterize
 from prehensile.scene.files import bundled_scene_path, load_scene, robot_goals
 from prehensile.spatial import rpy_to_matrix
 
@@ -58,6 +60,12 @@ def test_plan_bundled_scene(demo, tmp_path):
     assert trajectory["fixed_joints"] == path["fixed_joints"]
     np.testing.assert_allclose(trajectory["q"][0], waypoints[0], atol=1e-6)
     np.testing.assert_allclose(trajectory["q"][-1], waypoints[-1], atol=1e-6)
+    arm = model.chain_q_indices("arm")  # corners blended where the exact geometry stays free: faster than stopping
+    stopping = time_parameterize(waypoints, *model_limits(model, arm))
+    assert trajectory["duration"] < 0.9 * stopping.duration
+    samples = np.repeat(start[None], len(trajectory["q"]), axis=0)
+    samples[:, arm] = trajectory["q"]
+    assert ExactChecker(model, scene.collision_obstacles(), scene.robots[0].T_world_base).is_free(samples).all()
     assert (tmp_path / "plan.png").stat().st_size > 10_000
 
 

@@ -190,6 +190,7 @@ def picture_scene(scene: Scene, robot: PlacedRobot, configurations: np.ndarray) 
 
 def write_outputs(result, context, scene: Scene, robot: PlacedRobot, report: dict, out: Path) -> list[Path]:
     """Write path.json, trajectory.json (on success) and plan.png to ``out``; returns the paths."""
+    from prehensile.planning import certify_path
     from prehensile.planning.trajectory import model_limits, time_parameterize
     from prehensile.storage import atomic_write_json
     from prehensile.viz import render_scene
@@ -198,7 +199,10 @@ def write_outputs(result, context, scene: Scene, robot: PlacedRobot, report: dic
     if result.success:
         space = context.space
         velocity, acceleration = model_limits(robot.model, space.indices)
-        trajectory = time_parameterize(space.active(result.path), velocity, acceleration,
+        def certified(qa: np.ndarray, qb: np.ndarray) -> bool:  # exact, as the path: its ends may be ones that
+            return certify_path(context, space.full(np.stack([qa, qb]))).ok  # only the conservative balls reject
+
+        trajectory = time_parameterize(space.active(result.path), velocity, acceleration, blend_check=certified,
                                        joint_names=space.joint_names)
         extra = {"velocity_limits": velocity.tolist(), "acceleration_limits": acceleration.tolist(),
                  "fixed_joints": report["fixed_joints"]}  # the robot's other joints, held throughout
