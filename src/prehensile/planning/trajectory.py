@@ -253,9 +253,10 @@ def time_parameterize(path: np.ndarray, velocity_limits: float | np.ndarray, acc
     faster motion; otherwise the polyline is used (a warning is logged if the check failed).
     The check must also check joint limits, since the spline may overshoot: for a planning
     context, ``lambda a, b: ctx.check_motion(ctx.space.full(a), ctx.space.full(b))`` (the sphere
-    model), or, for a path that starts or ends where only the conservative balls collide (a
-    planner's certified escape), the exact ``lambda a, b: certify_path(ctx, ctx.space.full(np.stack([a,
-    b]))).ok`` (``prehensile plan`` uses it).
+    model), or the exact check
+    ``lambda a, b: certify_path(ctx, ctx.space.full(np.stack([a, b]))).ok``, which a path that
+    starts or ends where only the conservative balls collide (a planner's certified escape)
+    needs; ``prehensile plan`` uses it.
 
     Limits are enforced at the TOPP-RA gridpoints (the spline's knots among them) and checked
     again between them and at every returned sample; any residual excess (numerical, or
