@@ -375,8 +375,9 @@ def check_valid_path(ctx: PlanningContext, path: np.ndarray, who: str) -> np.nda
     for i in np.flatnonzero(~ctx.check_motions(path[:-1], path[1:])) if len(path) > 1 else ():
         report = certify_path(ctx, path[i:i + 2])
         if not report.ok:
-            why = (f"links {' and '.join(report.colliding_links)} collide" if report.colliding_links
-                   else "it leaves the joint limits")
+            links = report.colliding_links
+            why = ("it leaves the joint limits" if not links else f"link {links[0]} hits an obstacle" if len(links) == 1
+                   else f"links {links[0]} and {links[1]} collide")
             raise PrehensileError(f"{who}: the input path must be valid; its edge {i} (waypoint {i} to {i + 1}) "
                                   f"is not: {why}")
     return path
