@@ -53,7 +53,9 @@ def check_writable(path: str | Path, what: str, folder: bool = False) -> Path:
         if existing.exists():
             if not existing.is_dir():
                 raise PrehensileError(f"{what}: {existing} is a file, not a folder")
-            if not os.access(existing, os.W_OK | os.X_OK):
-                raise PrehensileError(f"{what}: {existing} is not writable")
+            try:  # a real attempt: permission bits do not tell for root, read-only mounts or /proc
+                os.rmdir(tempfile.mkdtemp(prefix=".prehensile-probe-", dir=existing))
+            except OSError as error:
+                raise PrehensileError(f"{what}: cannot write in {existing} ({error.strerror})") from None
             break
     return path
