@@ -173,7 +173,7 @@ def test_settings_are_validated():
     for bad in ({"time_budget_s": -1.0}, {"time_budget_s": np.inf}, {"ik_attempts": 0}, {"first_round_iterations": 0}):
         with pytest.raises(PrehensileError, match="IKRRTSettings: the budgets .*must be positive"):
             IKRRTSettings(**bad)
-    for bad in ({"goal_probability": 2.0}, {"time_budget_s": 0.0}, {"max_nodes": 0}):
+    for bad in ({"goal_probability": 2.0}, {"time_budget_s": 0.0}, {"time_budget_s": np.inf}, {"max_nodes": 0}):
         with pytest.raises(PrehensileError, match="JPlusRRTSettings: need"):
             JPlusRRTSettings(**bad)
 

@@ -89,9 +89,11 @@ class JPlusRRTSettings:
         positive = ("time_budget_s", "step", "max_step_position", "max_step_rotation", "position_tolerance",
                     "rotation_tolerance", "rotation_weight", "max_goal_steps")
         if not all(getattr(self, name) > 0 for name in positive) or not 0 <= self.goal_probability <= 1 \
-                or self.max_nodes < 2 or self.shortcut_iterations < 0 or not self.exact_approach >= 0:
-            raise PrehensileError(f"JPlusRRTSettings: need {', '.join(positive)} > 0, goal_probability in [0, 1], "
-                                  f"max_nodes >= 2, shortcut_iterations >= 0 and exact_approach >= 0; got {self}")
+                or self.max_nodes < 2 or self.shortcut_iterations < 0 or not self.exact_approach >= 0 \
+                or self.time_budget_s == np.inf:
+            raise PrehensileError(f"JPlusRRTSettings: need {', '.join(positive)} > 0, time_budget_s finite, "
+                                  f"goal_probability in [0, 1], max_nodes >= 2, shortcut_iterations >= 0 and "
+                                  f"exact_approach >= 0; got {self}")
 
 
 class _Tree:
