@@ -171,3 +171,19 @@ def test_covering_balls_keep_every_verdict(arm):
         assert fast.ok == slow.ok, path
         outcomes.add(fast.ok)
     assert outcomes == {True, False}
+
+
+def test_an_invalid_input_path_names_the_links_that_collide():
+    """NAO's left wrist sweeps through its torso between two free configurations."""
+    from prehensile import robots
+    from prehensile.planning.certify import check_valid_path
+
+    model = robots.load("nao")
+    ctx = PlanningContext(model, [], joints="left_arm")
+    a, b = model.neutral_configuration(), model.neutral_configuration()
+    a[ctx.space.indices] = [1.63, 0.52, -1.45, -1.2]
+    b[ctx.space.indices] = [1.54, 0.26, 1.17, -1.46]
+    assert ctx.exact.is_free(np.stack([a, b])).all()
+    with pytest.raises(PrehensileError, match=r"edge 0 \(waypoint 0 to 1\) is not: links (torso and l_wrist|l_wrist "
+                                              r"and torso) collide"):
+        check_valid_path(ctx, np.stack([a, b]), "test")
