@@ -145,6 +145,26 @@ def test_a_search_that_ran_out_of_time_does_not_blame_its_start(tmp_path):
     assert path["reason"] is None and "--ball-radius" not in result.output
 
 
+def test_plan_to_a_position_of_a_short_arm(tmp_path):
+    """NAO's 4-joint arm reaches a position (any orientation) taken from another configuration."""
+    scene = tmp_path / "nao.yaml"
+    scene.write_text("robots:\n  - {robot: nao}\n")
+    robot = load_scene(scene).robots[0]
+    arm = robot.model.chain_q_indices("left_arm")
+    reached = robot.configuration.copy()
+    reached[arm] = [0.5, 0.6, -0.8, -1.0]
+    position = link_pose(robot.model, reached, "l_arm_tip", T_world_base=robot.T_world_base)[:3, 3]
+    result = _plan(scene, "--chain", "left_arm", "--target", *map(str, position), "--out", tmp_path / "out")
+    assert result.exit_code == 0, result.output
+    path = json.loads((tmp_path / "out" / "path.json").read_text())
+    assert path["planner"] == "ik_rrt" and path["target"] == pytest.approx(position.tolist())
+    reached[arm] = path["waypoints"][-1]
+    tip = link_pose(robot.model, reached, "l_arm_tip", T_world_base=robot.T_world_base)[:3, 3]
+    assert np.linalg.norm(tip - position) < 1e-3
+    result = _plan(scene, "--chain", "left_arm", "--target", *map(str, position), "--planner", "jplus_rrt")
+    assert result.exit_code == 2 and "jplus_rrt steps toward a full pose" in " ".join(result.output.split())
+
+
 @pytest.mark.parametrize("args, message", [
     (["plan_demo", "--goal", "0.1", "0.2"], "expected 7 values"),
     (["plan_demo", "--goal", "a", "b"], "expected numbers"),
@@ -154,7 +174,7 @@ def test_a_search_that_ran_out_of_time_does_not_blame_its_start(tmp_path):
     (["plan_demo", "--chain", "hand"], "the scene's goal sets panda_joint1"),
     (["plan_demo", "--planner", "prm"], "valid: rrt_connect, ik_rrt, jplus_rrt"),
     (["plan_demo", "--target", *BEHIND_THE_WALL], "give --chain"),
-    (["plan_demo", "--chain", "arm", "--target", "0.3", "0.4", "0.2"], "expected 6 values"),
+    (["plan_demo", "--chain", "arm", "--target", "0.3", "0.4", "0.2", "0"], "expected 3 values (x y z, m) or 6"),
     (["plan_demo", "--chain", "arm", "--target", *BEHIND_THE_WALL, "--planner", "rrt_connect"],
      "use ik_rrt or jplus_rrt"),
     (["plan_demo", "--chain", "arm", "--planner", "jplus_rrt"], "give --target"),

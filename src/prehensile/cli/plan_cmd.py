@@ -4,7 +4,9 @@ The start is the robot's configuration in the scene. The goal is a configuration
 ``--goal`` or the robot's ``goal:`` entry in the scene file
 (:func:`~prehensile.scene.files.robot_goals`), planned with RRT-Connect; or a world pose of
 ``--chain``'s tip (``--target x y z roll pitch yaw``), planned with IK-RRT (goal
-configurations sampled by IK during the search) or J+-RRT (Jacobian steps toward the pose).
+configurations sampled by IK during the search) or J+-RRT (Jacobian steps toward the pose),
+or a world position of the tip (``--target x y z``, any orientation: for arms with fewer than
+six joints, such as NAO's), planned with IK-RRT.
 The planned joints are ``--chain``'s, else the joints the scene's goal names, else all of the
 robot's; joints not planned stay at their start values. The world is the scene's obstacles
 and objects plus the other robots at their configurations.
@@ -102,21 +104,12 @@ def goal_configuration(robot: PlacedRobot, joints: list[str], values: list[str] 
     return q
 
 
-def parse_target(values: list[str]) -> np.ndarray:
-    """The world pose (4, 4) of ``x y z roll pitch yaw`` (m, rad)."""
-    from prehensile.cli.ik_cmd import parse_target as parse_ik_target
-
-    if len(values) != 6:
-        raise PrehensileError(f"--target: expected 6 values (x y z roll pitch yaw; m, rad), got {len(values)}: "
-                              f"{' '.join(values)}")
-    return parse_ik_target(values)
-
-
 def plan_to_target(context, placed: PlacedRobot, chain: str, planner: str, target: np.ndarray, budget: float,
                    seed: int):
     """A PlanResult from the robot's start to any configuration that puts ``chain``'s tip at
-    the world pose ``target`` (4, 4), by ``planner`` (one of :data:`POSE_PLANNERS`)."""
-    from prehensile.ik import ChainSolver
+    the world pose ``target`` (4, 4) or position (3,), by ``planner`` (one of
+    :data:`POSE_PLANNERS`; a position: ik_rrt)."""
+    from prehensile.ik import ChainSolver, JacobianIKSettings
     from prehensile.planning.ik_rrt import IKRRTSettings, grasp_sampler, ik_rrt
     from prehensile.planning.jplus_rrt import JPlusRRTSettings, jplus_rrt
 
@@ -124,7 +117,8 @@ def plan_to_target(context, placed: PlacedRobot, chain: str, planner: str, targe
     if planner == "jplus_rrt":
         return jplus_rrt(context, q_start, targets, settings=JPlusRRTSettings(time_budget_s=budget), rng=seed,
                          chain=chain)
-    solver = ChainSolver(placed.model, chain, T_world_root=placed.T_world_base)
+    solver = ChainSolver(placed.model, chain, T_world_root=placed.T_world_base,
+                         settings=JacobianIKSettings(position_only=target.shape == (3,)))
     return ik_rrt(context, q_start, grasp_sampler(context, solver, targets, q_start),
                   IKRRTSettings(time_budget_s=budget), rng=seed)
 
@@ -234,9 +228,10 @@ def plan(
     goal: Optional[List[str]] = typer.Option(None, "--goal", metavar="V...",
                                              help="Goal values, one per planned joint (rad or m): "
                                              "--goal v1 v2 ... (default: the scene's goal)."),
-    target: Optional[List[str]] = typer.Option(None, "--target", metavar="X Y Z R P Y",
+    target: Optional[List[str]] = typer.Option(None, "--target", metavar="X Y Z [R P Y]",
                                                help="Goal pose of --chain's tip in the world "
-                                               "instead: --target x y z roll pitch yaw (m, rad)."),
+                                               "instead: --target x y z roll pitch yaw (m, rad), or its "
+                                               "position alone: --target x y z (ik_rrt)."),
     planner: Optional[str] = typer.Option(None, "--planner", help="rrt_connect (to a configuration; the default) "
                                           "or, to a --target pose, ik_rrt (the default) or jplus_rrt."),
     budget: float = typer.Option(1.0, "--budget", help="Search time limit (s)."),
@@ -246,6 +241,7 @@ def plan(
 ) -> None:
     """Plan from the robot's scene configuration to a goal configuration or tool pose; exit 0
     found, 1 no path, 2 bad input, 3 a bug."""
+    from prehensile.cli.ik_cmd import parse_target
     from prehensile.collision.spheres import generate_sphere_model
     from prehensile.planning import PlanningContext, RRTConnectSettings, rrt_connect
     from prehensile.scene.check import robot_obstacles
@@ -282,6 +278,9 @@ def plan(
     else:
         joints = list(model.joint_names)
     pose = parse_target(list(target) + list(ctx.args)) if target else None
+    if pose is not None and pose.shape == (3,) and planner == "jplus_rrt":
+        raise PrehensileError("--planner jplus_rrt steps toward a full pose: give --target x y z roll pitch yaw, "
+                              "or plan to a position with ik_rrt")
     q_goal = None if target else goal_configuration(placed, joints, list(goal or []) + list(ctx.args), scene_goal)
     q_start = placed.configuration
     obstacles = loaded.collision_obstacles() + [o for r in loaded.robots if r.name != placed.name
