@@ -467,7 +467,7 @@ def test_shortcut_never_lengthens_nor_invalidates(arm):
     for bad in (dict(iterations=-1), dict(iterations=2.5), dict(time_budget_s=-1.0), dict(time_budget_s=float("nan"))):
         with pytest.raises(PrehensileError, match="shortcut: iterations must be a count >= 0"):
             shortcut(ctx, detour, 0, **bad)
-    with pytest.raises(PrehensileError, match=r"shortcut: the input path must be valid; its edge 1 .* link \w+ hits an obstacle"):
+    with pytest.raises(PrehensileError, match=r"shortcut: the input path must be valid; its edge 1 .* hits an obstacle"):
         shortcut(ctx, np.array([start, start, goal]), 0)  # the straight motion sweeps through the wall
     # pruning again spends no check on the pairs of waypoints found blocked before
     work = (ctx.space.indices, ctx.space.weights, ctx.resolution, ctx.spheres.data, ctx.scratch,
