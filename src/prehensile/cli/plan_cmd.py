@@ -193,8 +193,10 @@ def write_outputs(result, context, scene: Scene, robot: PlacedRobot, report: dic
     if result.success:
         space = context.space
         velocity, acceleration = model_limits(robot.model, space.indices)
-        def certified(qa: np.ndarray, qb: np.ndarray) -> bool:  # exact, as the path: its ends may be ones that
-            return certify_path(context, space.full(np.stack([qa, qb]))).ok  # only the conservative balls reject
+
+        def certified(qa: np.ndarray, qb: np.ndarray) -> bool:
+            """The blend check: exact, as for the path, whose ends may be ones only the balls reject."""
+            return certify_path(context, space.full(np.stack([qa, qb]))).ok
 
         trajectory = time_parameterize(space.active(result.path), velocity, acceleration, blend_check=certified,
                                        joint_names=space.joint_names)
