@@ -251,9 +251,7 @@ def _record(prepared: PreparedProblem, result, time_s: float, settings: MBMSetti
         "attempts": result.info.get("attempts", 1),  # > 1: planned again after a failed certification
     }
     ends = {"invalid_start": ("start",), "invalid_goal": ("goal",)}.get(result.status.value, ("start", "goal"))
-    # an end the planner could not use explains most failures, but not a timeout after the search ran
-    searched = result.status.value == "timeout" and result.stats.iterations > 0
-    for end in ends if not (result.success or searched) else ():
+    for end in ends if not (result.success or result.searched_out) else ():  # an unusable end explains most failures
         why = prepared.ctx.why_invalid(prepared.q_start if end == "start" else prepared.q_goal)
         if why:
             record["reason"] = f"{end}: {why}"

@@ -28,6 +28,13 @@ BALL_RADIUS_OPTION = typer.Option(None, "--ball-radius", help="Largest ball (m) 
                                   "ARMAR-III's torso want 0.04.")
 
 
+def check_budget(budget: float) -> None:
+    """Refuse a ``--budget`` that is not a positive, finite time: an infinite one never ends a
+    search for an unreachable goal."""
+    if not (budget > 0 and budget < float("inf")):
+        raise PrehensileError(f"--budget: must be a positive, finite time (s), got {budget}")
+
+
 def check_ball_radius(ball_radius: float | None) -> None:
     """Refuse a ``--ball-radius`` that is not a positive length."""
     if ball_radius is not None and not ball_radius > 0:

@@ -12,7 +12,7 @@ import numpy as np
 import typer
 from rich.table import Table
 
-from prehensile.cli.app import SRDF_OPTION, app, console, echo_json, handles_errors
+from prehensile.cli.app import SRDF_OPTION, app, check_budget, console, echo_json, handles_errors
 from prehensile.errors import PrehensileError
 from prehensile.ik import METHODS as JACOBIAN_METHODS
 from prehensile.ik import ChainSolver, CompleteIKSettings, JacobianIKSettings, solve_ik_complete
@@ -52,8 +52,7 @@ def solve_query(model: RobotModel, chain: str, target: np.ndarray, method: str, 
     """
     if method not in METHODS:
         raise PrehensileError(f"--method: unknown IK method '{method}'; valid: {', '.join(METHODS)}")
-    if not (budget > 0 and np.isfinite(budget)):  # an infinite budget never ends a search for an unreachable target
-        raise PrehensileError(f"--budget: must be a positive, finite time (s), got {budget}")
+    check_budget(budget)
     position_only = target.shape == (3,)
     if method == "analytic" and position_only:
         raise PrehensileError("--method analytic solves poses: give --target x y z roll pitch yaw")

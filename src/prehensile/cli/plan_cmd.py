@@ -30,7 +30,7 @@ from typing import List, Optional
 import numpy as np
 import typer
 
-from prehensile.cli.app import BALL_RADIUS_OPTION, app, check_ball_radius, console, handles_errors
+from prehensile.cli.app import BALL_RADIUS_OPTION, app, check_ball_radius, check_budget, console, handles_errors
 from prehensile.errors import PrehensileError, SceneError
 from prehensile.scene.scene import PlacedRobot, Scene
 
@@ -154,7 +154,7 @@ def _end_reason(result, ctx, q_start: np.ndarray, q_goal: np.ndarray | None) -> 
     from prehensile.planning import PlanStatus
 
     status = result.status
-    if status is PlanStatus.TIMEOUT and result.stats.iterations:  # the ends were usable: the search ran out
+    if result.searched_out:
         return None
     if status is PlanStatus.NO_GOAL_CONFIGURATION:
         return ("goal: IK found no configuration that puts the chain's tip at the target and is free within the "
@@ -263,8 +263,7 @@ def plan(
             f"a configuration; for a --target pose use {' or '.join(POSE_PLANNERS)}"))
     if target and chain is None:
         raise PrehensileError("--target: give --chain, the chain whose tip goes to the pose")
-    if not (budget > 0 and np.isfinite(budget)):  # an infinite budget never ends a search for an unreachable goal
-        raise PrehensileError(f"--budget: must be a positive, finite time (s), got {budget}")
+    check_budget(budget)
     check_ball_radius(ball_radius)
     check_writable(out, "--out", folder=True)
     path = scene_path(scene)

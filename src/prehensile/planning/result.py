@@ -75,3 +75,9 @@ class PlanResult:
     @property
     def success(self) -> bool:
         return self.status is PlanStatus.SUCCESS
+
+    @property
+    def searched_out(self) -> bool:
+        """A TIMEOUT after the search ran (iterations > 0): the start and goal were usable, so
+        neither is the reason it failed."""
+        return self.status is PlanStatus.TIMEOUT and self.stats.iterations > 0
