@@ -109,7 +109,13 @@ def test_ik_planners_start_where_only_the_balls_collide(panda_scene):
     for result in (ik_rrt(ctx, q, grasp_sampler(ctx, solver, goals, q), rng=0), jplus_rrt(ctx, q, goals, rng=0)):
         assert result.success
         assert_valid_path(ctx, result.path, q)
-    assert jplus_rrt(ctx, q, goals, settings=JPlusRRTSettings(escape=False)).status is PlanStatus.INVALID_START
+    refused = jplus_rrt(ctx, q, goals, settings=JPlusRRTSettings(escape=False))
+    assert refused.status is PlanStatus.INVALID_START
+    assert refused.info["reason"].startswith("start: free on the exact geometry, but the sphere model's")
+    outside = q.copy()
+    outside[ctx.space.indices[0]] = ctx.model.upper[ctx.space.indices[0]] + 0.1
+    result = ik_rrt(ctx, outside, grasp_sampler(ctx, solver, goals, q), rng=0)
+    assert result.status is PlanStatus.INVALID_START and result.info["reason"].startswith("start: joint ")
 
 
 def test_jplus_rrt_moves_the_named_chain_planned_in_any_joint_order(panda_scene):
@@ -184,6 +190,7 @@ def test_unreachable_goals_are_statuses_within_budget(panda_scene):
     far[:3, 3] = [0.0, 0.0, 3.0]
     result = ik_rrt(ctx, q0, grasp_sampler(ctx, solver, far[None], q0), IKRRTSettings(time_budget_s=0.2), rng=0)
     assert result.status is PlanStatus.NO_GOAL_CONFIGURATION and result.stats.plan_time_s < 0.4
+    assert result.blamed_ends == () and "reason" not in result.info  # IK's failure, not an end's
     result = jplus_rrt(ctx, q0, far[None], settings=JPlusRRTSettings(time_budget_s=0.2), rng=0)
     assert result.status is PlanStatus.TIMEOUT and result.stats.plan_time_s < 0.4
     colliding = q0.copy()

@@ -157,9 +157,16 @@ def test_invalid_start_and_goal(arm):
     ctx = PlanningContext(model, [block], spheres=spheres)
     free = np.array([1.5, 0.0, 0.0])
     settings = RRTConnectSettings(time_budget_s=0.2)
-    assert rrt_connect(ctx, np.zeros(3), free, settings).status is PlanStatus.INVALID_START
+    invalid_start = rrt_connect(ctx, np.zeros(3), free, settings)
+    assert invalid_start.status is PlanStatus.INVALID_START and invalid_start.blamed_ends == ("start",)
+    assert invalid_start.info["reason"] == f"start: {ctx.why_invalid(np.zeros(3))}"
     assert rrt_connect(ctx, free, np.zeros(3), settings).status is PlanStatus.INVALID_GOAL
-    assert rrt_connect(ctx, free, np.array([0.0, 2.9, 0.0]), settings).status is PlanStatus.INVALID_GOAL  # limits
+    outside = rrt_connect(ctx, free, np.array([0.0, 2.9, 0.0]), settings)  # limits
+    assert outside.status is PlanStatus.INVALID_GOAL and outside.info["reason"].startswith("goal: joint ")
+    goal_set = rrt_connect(ctx, free, np.array([[0.0, 2.9, 0.0], free, np.zeros(3)]), settings)
+    assert goal_set.success and "reason" not in goal_set.info and goal_set.goal_index == 1
+    unusable = rrt_connect(ctx, free, np.array([[0.0, 2.9, 0.0], np.zeros(3)]), settings)
+    assert re.fullmatch(r"goal 0: joint .*; goal 1: \w+ collides with block .*", unusable.info["reason"])
     assert re.fullmatch(r"\w+ collides with block \(\d+\.\d mm deep\)(; .*)?", ctx.why_invalid(np.zeros(3)))
     assert re.fullmatch(r"joint \w+ = 2\.9 outside its limits \[-?[\d.]+, [\d.]+\]",
                         ctx.why_invalid(np.array([0.0, 2.9, 0.0])))

@@ -250,12 +250,9 @@ def _record(prepared: PreparedProblem, result, time_s: float, settings: MBMSetti
         "waypoints": len(result.path), "path_length": None, "exact_colliding": None,
         "attempts": result.info.get("attempts", 1),  # > 1: planned again after a failed certification
     }
-    ends = {"invalid_start": ("start",), "invalid_goal": ("goal",)}.get(result.status.value, ("start", "goal"))
-    for end in ends if not (result.success or result.searched_out) else ():  # an unusable end explains most failures
-        why = prepared.ctx.why_invalid(prepared.q_start if end == "start" else prepared.q_goal)
-        if why:
-            record["reason"] = f"{end}: {why}"
-            break
+    reason = prepared.ctx.explain(result, prepared.q_start, prepared.q_goal).info.get("reason")  # OMPL's has none
+    if reason:  # an unusable end explains most failures
+        record["reason"] = reason
     if result.success:
         record["path_length"] = space.path_length(space.active(result.path))
         record["exact_colliding"] = path_collides_exactly(space, prepared.ctx.exact, result.path,

@@ -147,30 +147,22 @@ def plan_report(result, ctx, scene: Path, robot: PlacedRobot, q_goal: np.ndarray
 
 
 def _end_reason(result, ctx, q_start: np.ndarray, q_goal: np.ndarray | None) -> str | None:
-    """Why the planner could not use the start or goal, "start: ..." / "goal: ...": for an
-    invalid one, or for a timeout spent searching a certified escape from an end that only the
-    sphere model rejects (no search iteration ran; finer balls, ``--ball-radius``, may then
-    plan); for a target no IK solution reached; None otherwise."""
+    """Why the planner could not use the start or goal, "start: ..." / "goal: ..." (the
+    planner's ``info["reason"]``, :meth:`~prehensile.planning.context.PlanningContext.explain`),
+    with a hint at finer balls (``--ball-radius``) where only the sphere model rejects an end;
+    for a target no IK solution reached; None otherwise."""
     from prehensile.planning import PlanStatus
 
-    status = result.status
-    if result.searched_out:
-        return None
-    if status is PlanStatus.NO_GOAL_CONFIGURATION:
+    if result.status is PlanStatus.NO_GOAL_CONFIGURATION:
         return ("goal: IK found no configuration that puts the chain's tip at the target and is free within the "
                 "budget (the target may be out of reach, or every solution found collides)")
-
-    ends = {PlanStatus.INVALID_START: [("start", q_start)], PlanStatus.INVALID_GOAL: [("goal", q_goal)],
-            PlanStatus.TIMEOUT: [("start", q_start), ("goal", q_goal)]}.get(status, [])
-    reasons, balls_only = [], False
-    for name, q in ends:
-        why = "" if q is None else ctx.why_invalid(q)
-        if why:
-            reasons.append(f"{name}: {why}")
-            balls_only |= bool(ctx.model.within_limits(q) and ctx.exact.is_free(q))
-    if balls_only:
-        reasons.append("finer balls (a --ball-radius below the links' balls) may make such ends valid")
-    return "; ".join(reasons) or None
+    reason = result.info.get("reason")
+    if reason is None:
+        return None
+    blamed = [q for end, q in (("start", q_start), ("goal", q_goal)) if end in result.blamed_ends and q is not None]
+    if any(ctx.model.within_limits(q) and ctx.exact.is_free(q) and not ctx.is_valid(q) for q in blamed):
+        reason += "; finer balls (a --ball-radius below the links' balls) may make such ends valid"
+    return reason
 
 
 def picture_scene(scene: Scene, robot: PlacedRobot, configurations: np.ndarray) -> Scene:

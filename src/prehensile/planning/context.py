@@ -35,6 +35,7 @@ from prehensile.errors import PrehensileError
 from prehensile.model.geometry import Geometry, Shape
 from prehensile.model.robot_model import FIXED, PRISMATIC, REVOLUTE, RobotModel
 from prehensile.planning.cspace import ConfigurationSpace
+from prehensile.planning.result import PlanResult
 from prehensile.spatial.transforms import check_one_pose
 
 
@@ -474,6 +475,18 @@ class PlanningContext:
                     "a planner starts from such an end only along a certified escape motion, if it finds one "
                     "(RRTConnectSettings.escape)")
         return ""
+
+    def explain(self, result: PlanResult, q_start: np.ndarray, q_goal: np.ndarray | None = None) -> PlanResult:
+        """``result`` with ``info["reason"]``: why its :attr:`~PlanResult.blamed_ends` are
+        unusable (:meth:`why_invalid`), "start: ...; goal: ..." ("goal 2: ..." for row 2 of a
+        goal set (k, dof)); unchanged if none of them has a reason. q_start (dof,), q_goal
+        (dof,) or (k, dof) as given to the planner (None: no goal configuration)."""
+        ends = [("start", q_start)] if "start" in result.blamed_ends else []
+        if "goal" in result.blamed_ends and q_goal is not None:
+            goals = np.reshape(q_goal, (-1, self.model.dof))
+            ends += [("goal" if np.ndim(q_goal) == 1 else f"goal {i}", q) for i, q in enumerate(goals)]
+        reason = "; ".join(f"{name}: {why}" for name, q in ends if (why := self.why_invalid(q)))
+        return dataclasses.replace(result, info={**result.info, "reason": reason}) if reason else result
 
     def check_motion(self, qa: np.ndarray, qb: np.ndarray, resolution: float | None = None) -> bool:
         """True if both ends are valid and the straight segment qa -> qb (full configurations

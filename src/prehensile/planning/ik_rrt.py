@@ -170,7 +170,8 @@ def multi_eef_rrt(ctx: PlanningContext | dict[str, PlanningContext], q_start: np
     for name in samplers:  # a start only the balls reject is left to the search's certified escape
         context = contexts[name]
         if not context.is_usable_end(q_start):
-            return PlanResult(PlanStatus.INVALID_START, np.zeros((0, len(q_start))), PlanStats(), end_effector=name)
+            return context.explain(PlanResult(PlanStatus.INVALID_START, np.zeros((0, len(q_start))), PlanStats(),
+                                              end_effector=name), q_start)
     searches = {name: _Search(contexts[name], q_start, sampler, settings, rng) for name, sampler in samplers.items()}
     while clock() < deadline:
         for name, search in searches.items():
@@ -179,12 +180,12 @@ def multi_eef_rrt(ctx: PlanningContext | dict[str, PlanningContext], q_start: np
                 spent = clock() - start - result.stats.simplify_time_s - result.stats.certify_time_s
                 stats = dataclasses.replace(result.stats, plan_time_s=spent,
                                             ik_solutions=sum(len(s.infos) for s in searches.values()))
-                return dataclasses.replace(result, stats=stats, end_effector=name)
+                return contexts[name].explain(dataclasses.replace(result, stats=stats, end_effector=name), q_start)
     found = sum(len(s.infos) for s in searches.values())
     status = PlanStatus.TIMEOUT if found else PlanStatus.NO_GOAL_CONFIGURATION
     first = next(iter(searches.values()))
     stats = dataclasses.replace(first.stats(clock() - start), ik_solutions=found)
-    return PlanResult(status, np.zeros((0, len(q_start))), stats)
+    return contexts[next(iter(samplers))].explain(PlanResult(status, np.zeros((0, len(q_start))), stats), q_start)
 
 
 def _random_seed(solvers: Sequence[ChainSolver], q_ref: np.ndarray, rng: np.random.Generator) -> np.ndarray:

@@ -271,7 +271,7 @@ def _grow(ctx: PlanningContext, q_start: np.ndarray, goals, s: JPlusRRTSettings,
         escape = certified_escape(ctx, q_start, q_start, rng, 0.5 * ctx.resolution, attempts=None, deadline=deadline)
     if not valid and escape is None:
         status = PlanStatus.TIMEOUT if clock() >= deadline else PlanStatus.INVALID_START
-        return _result(status, ctx, 0, 0, counted, start_time)
+        return ctx.explain(_result(status, ctx, 0, 0, counted, start_time), q_start)
     tree = _Tree(q_start, goals.tools(q_start), s.max_nodes)
     if escape is not None:
         tree.add(escape, 0, goals.tools(escape))

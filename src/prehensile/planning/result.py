@@ -62,7 +62,9 @@ class PlanResult:
             (:func:`~prehensile.planning.rrt_connect.rrt_connect`) or the target pose (J+-RRT,
             IK-RRT); -1 if none, or the goal is a pair of poses (see ``info``).
         end_effector: the hand that grasps (Multi-EEF planners), "" otherwise.
-        info: planner-specific extras (e.g. the grasp pair of a bimanual plan).
+        info: planner-specific extras (e.g. the grasp pair of a bimanual plan); a failure that
+            an unusable start or goal explains has ``reason``, e.g. "start: joint j2 = 3.1
+            outside its limits [-2.9, 2.9]" (see :attr:`blamed_ends`).
     """
 
     status: PlanStatus
@@ -81,3 +83,14 @@ class PlanResult:
         """A TIMEOUT after the search ran (iterations > 0): the start and goal were usable, so
         neither is the reason it failed."""
         return self.status is PlanStatus.TIMEOUT and self.stats.iterations > 0
+
+    @property
+    def blamed_ends(self) -> tuple[str, ...]:
+        """The ends ("start", "goal") that may explain a failure: the one an INVALID status names;
+        both for any other failure except :attr:`searched_out` (e.g. a TIMEOUT spent looking for
+        a certified escape from an end that only the sphere model rejects); none on SUCCESS or
+        NO_GOAL_CONFIGURATION (IK's failure)."""
+        if self.success or self.searched_out or self.status is PlanStatus.NO_GOAL_CONFIGURATION:
+            return ()
+        return {PlanStatus.INVALID_START: ("start",), PlanStatus.INVALID_GOAL: ("goal",)}.get(self.status,
+                                                                                           ("start", "goal"))

@@ -594,8 +594,8 @@ def rrt_connect(ctx: PlanningContext, q_start: np.ndarray, q_goal: np.ndarray,
         (links planned on covering balls, see ``settings.certify_retries``) and ``certify``
         (:class:`CertifyReport`, if certified). INVALID_START /
         INVALID_GOAL when the start / every goal is outside the limits, or in collision for
-        the sphere model without a certified escape (see ``settings.escape``;
-        :meth:`~prehensile.planning.context.PlanningContext.why_invalid` says which), also for
+        the sphere model without a certified escape (see ``settings.escape``; ``info["reason"]``
+        says which, :meth:`~prehensile.planning.context.PlanningContext.explain`), also for
         the covering balls of a search repeated after a failed certification (an end the
         planning balls let through although the geometry collides; ``info["certify"]`` holds
         the failed path's report); TIMEOUT when
@@ -604,4 +604,4 @@ def rrt_connect(ctx: PlanningContext, q_start: np.ndarray, q_goal: np.ndarray,
     """
     query = RRTConnectSearch(ctx, q_start, settings, rng)
     query.add_goals(q_goal)
-    return query.solve(settings.time_budget_s)
+    return ctx.explain(query.solve(settings.time_budget_s), q_start, q_goal)
