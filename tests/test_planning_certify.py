@@ -114,7 +114,7 @@ def test_agrees_with_dense_sampling_near_a_concave_mesh(arm):
         outcomes.add(report.ok)
     assert outcomes == {True, False}
     # the certifier uses the exact checker's coal geometry of the world: the mesh's BVH is built once
-    assert ctx.certifier._obstacles[0][1] is ctx.exact.obstacle_parts[0].exact
+    assert ctx.certifier._obstacles[0].exact is ctx.exact.obstacle_parts[0].exact
     with pytest.raises(PrehensileError, match="ExactCertifier: 1 obstacle parts for 2 obstacles"):
         ExactCertifier(model, [mesh, mesh], np.eye(4), ctx.acm, parts=ctx.exact.obstacle_parts)
 

@@ -234,7 +234,6 @@ class ExactChecker:
         self.obstacles = check_obstacles(obstacles)
         self.obstacle_parts = obstacle_parts(self.obstacles)
         """The obstacles' coal geometry (:func:`obstacle_parts`), to share with certifiers of this world."""
-        self._obstacles = [(o.name, o.exact, o.bound, o.transform) for o in self.obstacle_parts]
         self._obstacle_bounds = []  # (primitive, pose): the obstacle, or the box holding a mesh
         for o in self.obstacles:
             T = np.asarray(o.T_world_shape, dtype=float)
@@ -251,7 +250,7 @@ class ExactChecker:
         self._part_radius = np.array([p.radius for p in self._parts])
         first = np.cumsum([0] + [len(g) for g in model.collisions])
         self._world_pairs = np.array([(p, o) for i in links for p in range(first[i], first[i + 1])
-                                      for o in range(len(self._obstacles))], dtype=np.int64).reshape(-1, 2)
+                                      for o in range(len(self.obstacle_parts))], dtype=np.int64).reshape(-1, 2)
         self._part_pairs = np.array([(a, b) for i, j in self_pairs for a in range(first[i], first[i + 1])
                                      for b in range(first[j], first[j + 1])], dtype=np.int64).reshape(-1, 2)
         self._request = coal.CollisionRequest()
@@ -312,7 +311,8 @@ class ExactChecker:
         """(link index, obstacle index, placed geometry, obstacle geometry) of the world pairs
         whose bounding balls are at most ``within`` m apart (``gap`` (W,) of one configuration)."""
         for g, o in self._world_pairs[gap <= within]:
-            yield self._parts[g].link, o, part(g), self._obstacles[o][1:]
+            obstacle = self.obstacle_parts[o]
+            yield self._parts[g].link, o, part(g), (obstacle.exact, obstacle.bound, obstacle.transform)
 
     def _self_candidates(self, part, gap: np.ndarray, within: float):
         """(link index, link index, placed geometry, placed geometry) of the self pairs whose
@@ -325,7 +325,7 @@ class ExactChecker:
         of one configuration (link poses (L, 4, 4)) whose bounding balls are at most ``within`` m apart."""
         names, part = self.model.link_names, self._placer(poses)
         for link, o, a, b in self._world_candidates(part, world_gap, within):
-            yield names[link], self._obstacles[o][0], a, b
+            yield names[link], self.obstacle_parts[o].name, a, b
         for i, j, a, b in self._self_candidates(part, self_gap, within):
             yield names[i], names[j], a, b
 
@@ -430,7 +430,7 @@ class ExactChecker:
             d = float(coal.distance(part[_EXACT], part[_POSE], other[_EXACT], other[_POSE], self._distance_request,
                                     result))
             if d <= max_distance and ((link, o) not in best or d < best[link, o].distance):
-                best[link, o] = ClosestPair(self.model.link_names[link], self._obstacles[o][0], d,
+                best[link, o] = ClosestPair(self.model.link_names[link], self.obstacle_parts[o].name, d,
                                             np.array(result.getNearestPoint1(), dtype=float),
                                             np.array(result.getNearestPoint2(), dtype=float))
         return [best[key] for key in sorted(best)]

@@ -116,7 +116,7 @@ class ExactCertifier:
         parts = obstacle_parts(obstacles) if parts is None else parts
         if len(parts) != len(obstacles):
             raise PrehensileError(f"ExactCertifier: {len(parts)} obstacle parts for {len(obstacles)} obstacles")
-        self._obstacles = [(o.transform, o.exact, o.bound, o.convex) for o in parts]
+        self._obstacles = parts
         boxes = []  # per obstacle: world AABB (min xyz, max xyz)
         for o in parts:
             o.exact.computeLocalAABB()
@@ -157,7 +157,8 @@ class ExactCertifier:
         part_a, Ta = self._parts[a], placed[a]
         exact_a, bound_a, convex_a = part_a.exact, part_a.bound, part_a.convex
         if o >= 0:
-            Tb, exact_b, bound_b, convex_b = self._obstacles[o]
+            obstacle = self._obstacles[o]
+            Tb, exact_b, bound_b, convex_b = obstacle.transform, obstacle.exact, obstacle.bound, obstacle.convex
         else:
             part_b, Tb = self._parts[b], placed[b]
             exact_b, bound_b, convex_b = part_b.exact, part_b.bound, part_b.convex
