@@ -164,10 +164,11 @@ def test_ball_radius_sizes_the_generated_balls(tmp_path):
 
 
 @pytest.mark.parametrize("extra, message", [
+    (["--budget", "inf"], "--budget: must be a positive, finite time (s), got inf"),
     (["--ball-radius", "-1"], "--ball-radius: must be positive (m), got -1"),
     (["--ball-radius", "0.04", "--spheres", __file__], "give it or --spheres, not both"),
 ])
-def test_bad_ball_options_exit_2(tmp_path, extra, message):
+def test_bad_budget_and_ball_options_exit_2(tmp_path, extra, message):
     _write_armar_problems(tmp_path / "problems" / "shelf_armar3")
     result = runner.invoke(app, ["bench", "mbm", str(tmp_path / "problems"), "--robot", "armar3", *extra])
     assert result.exit_code == 2

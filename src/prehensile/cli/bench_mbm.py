@@ -11,8 +11,8 @@ from rich.markup import escape
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Column, Table
 
-from prehensile.cli.app import (BALL_RADIUS_OPTION, SRDF_OPTION, bench_app, check_ball_radius, console, err_console,
-                                handles_errors)
+from prehensile.cli.app import (BALL_RADIUS_OPTION, SRDF_OPTION, bench_app, check_ball_radius, check_budget, console,
+                                err_console, handles_errors)
 from prehensile.errors import PrehensileError
 
 
@@ -42,6 +42,7 @@ def bench_mbm(
     from prehensile.benchmarking.mbm import MBMSettings, benchmark_spheres, run_mbm
     from prehensile.storage import atomic_write_json, check_writable
 
+    check_budget(budget)
     settings = MBMSettings(planner=planner, time_budget_s=budget, seed=seed, limit=limit, compare_ompl=compare_ompl)
     if json_out is not None:
         check_writable(json_out, "--json")
