@@ -56,6 +56,7 @@ def check_writable(path: str | Path, what: str, folder: bool = False) -> Path:
             try:  # a real attempt: permission bits do not tell for root, read-only mounts or /proc
                 os.rmdir(tempfile.mkdtemp(prefix=".prehensile-probe-", dir=existing))
             except OSError as error:
-                raise PrehensileError(f"{what}: cannot write in {existing} ({error.strerror})") from None
+                where = "" if existing == target else f" (to create {target})"
+                raise PrehensileError(f"{what}: cannot write in {existing}{where}: {error.strerror}") from None
             break
     return path

@@ -38,9 +38,12 @@ def bench_ik(
     ikpy_targets: int = typer.Option(200, "--ikpy-targets", help="ikpy runs on the first N targets only."),
     json_out: Optional[Path] = typer.Option(None, "--json", help="Write the report (JSON) to this file."),
 ) -> None:
-    """Solve n reachable targets of the chain base -> tip from the neutral configuration; report
-    success (checked by our FK: 0.1 mm, 1 mrad), time per target and iterations per solver, and
-    our time relative to the peers'."""
+    """Solve n reachable targets of a chain with our IK solvers and the peers'.
+
+    The targets are reachable poses of the chain base -> tip, solved from the neutral
+    configuration. Reports success (checked by our FK: 0.1 mm, 1 mrad), time per target and
+    iterations per solver, and our time relative to the peers'.
+    """
     from prehensile import robots
     from prehensile.benchmarking.ik import IKBenchSettings, run_ik_bench
     from prehensile.storage import atomic_write_json, check_writable

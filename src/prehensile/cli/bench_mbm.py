@@ -36,8 +36,11 @@ def bench_mbm(
     limit: int = typer.Option(0, "--limit", help="At most N problems per scenario (0: all)."),
     json_out: Optional[Path] = typer.Option(None, "--json", help="Write the full report (JSON) to this file."),
 ) -> None:
-    """Plan every problem; report solved, median / p95 planning time (search + simplification),
-    path length, certification time and exactly-colliding paths, per scenario and overall."""
+    """Plan every MotionBenchMaker problem of a folder or archive, optionally with OMPL beside.
+
+    Reports solved, median / p95 planning time (search + simplification), path length,
+    certification time and exactly-colliding paths, per scenario and overall.
+    """
     from prehensile import robots
     from prehensile.benchmarking.mbm import MBMSettings, benchmark_spheres, run_mbm
     from prehensile.storage import atomic_write_json, check_writable

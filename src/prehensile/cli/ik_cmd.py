@@ -113,8 +113,11 @@ def ik(
     budget: float = typer.Option(0.1, "--budget", help="Time budget (s) of the Jacobian methods."),
     as_json: bool = typer.Option(False, "--json", help="Print JSON instead of tables."),
 ) -> None:
-    """Inverse kinematics of one chain from the neutral configuration (Jacobian methods restart
-    randomly within the budget). Exit code 0 solved, 1 no solution, 2 bad input, 3 a bug."""
+    """Inverse kinematics of one chain from the neutral configuration.
+
+    Jacobian methods restart from random configurations within the budget. Exit code 0 when
+    solved, 1 when not, 2 on bad input, 3 on a bug.
+    """
     if ctx.args and not target:
         raise PrehensileError(f"unexpected arguments {' '.join(ctx.args)}; give the target after --target")
     from prehensile.cli.robot import load_robot

@@ -180,6 +180,7 @@ def write_outputs(result, context, scene: Scene, robot: PlacedRobot, report: dic
     from prehensile.planning.trajectory import model_limits, time_parameterize
     from prehensile.storage import atomic_write_json
     from prehensile.viz import render_scene
+    from prehensile.viz.picture import ROBOT_COLOR_NAMES
 
     written = [atomic_write_json(out / "path.json", report)]
     if result.success:
@@ -198,7 +199,8 @@ def write_outputs(result, context, scene: Scene, robot: PlacedRobot, report: dic
         inner = result.path[1:-1]
         picks = inner[np.linspace(0, len(inner) - 1, min(PICTURE_WAYPOINTS, len(inner))).round().astype(int)]
         shown = np.concatenate([result.path[:1], picks, result.path[-1:]])
-        title = (f"{robot.name} from start (blue-grey) to goal: {len(result.path)} waypoints, "
+        title = (f"{robot.name} from start ({ROBOT_COLOR_NAMES[0]}) to goal ({ROBOT_COLOR_NAMES[len(shown) - 1]}): "
+                 f"{len(result.path)} waypoints, "
                  f"{report['path_length_m']:.2f} m weighted length, {trajectory.duration:.2f} s")
     else:
         (out / "trajectory.json").unlink(missing_ok=True)  # never leave an earlier plan's trajectory
@@ -233,8 +235,10 @@ def plan(
     seed: int = typer.Option(0, "--seed", min=0, help="Random seed."),
     out: Path = typer.Option(Path("prehensile-plan"), "--out", help="Folder for path.json, trajectory.json, plan.png."),
 ) -> None:
-    """Plan from the robot's scene configuration to a goal configuration or tool pose; exit 0
-    found, 1 no path, 2 bad input, 3 a bug."""
+    """Plan from the robot's scene configuration to a goal configuration or tool pose.
+
+    Exit code 0 when a path is found, 1 when none is, 2 on bad input, 3 on a bug.
+    """
     from prehensile.cli.ik_cmd import parse_target
     from prehensile.collision.spheres import generate_sphere_model
     from prehensile.planning import PlanningContext, RRTConnectSettings, rrt_connect

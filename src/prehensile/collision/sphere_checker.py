@@ -14,6 +14,7 @@ wholly inside a closed obstacle mesh is not detected by either checker.
 from __future__ import annotations
 
 import functools
+import math
 from typing import Sequence
 
 import numpy as np
@@ -258,7 +259,7 @@ class SphereChecker:
         """(q, its rows (B, dof) contiguous) for configurations q (*batch, dof); a robot without
         joints (dof 0) included."""
         q = self.model.check_configuration(q)
-        return q, np.ascontiguousarray(q.reshape(int(np.prod(q.shape[:-1])), self.model.dof))
+        return q, np.ascontiguousarray(q.reshape(math.prod(q.shape[:-1]), self.model.dof))
 
     def is_free(self, q: np.ndarray) -> np.ndarray:
         """(*batch,) bool: no ball meets an obstacle or a ball of a non-allowed link, for q

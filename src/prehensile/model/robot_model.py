@@ -16,7 +16,7 @@ from typing import Mapping
 
 import numpy as np
 
-from prehensile.errors import UnknownFrameError
+from prehensile.errors import PrehensileError, UnknownFrameError
 from prehensile.model.geometry import Geometry
 
 FIXED, REVOLUTE, PRISMATIC = 0, 1, 2
@@ -227,8 +227,6 @@ class RobotModel:
 
     def check_configuration(self, q: np.ndarray, what: str = "q") -> np.ndarray:
         """Validate q of shape (*batch, dof): right length and finite; returns it as float64."""
-        from prehensile.errors import PrehensileError
-
         q = np.asarray(q, dtype=float)
         if q.ndim == 0 or q.shape[-1] != self.dof:
             raise PrehensileError(
@@ -243,8 +241,6 @@ class RobotModel:
         """Validate one configuration q (dof,) (as :meth:`check_configuration`, and no batch)."""
         q = self.check_configuration(q, what)
         if q.shape != (self.dof,):
-            from prehensile.errors import PrehensileError
-
             raise PrehensileError(f"{what}: expected one configuration ({self.dof},) for robot '{self.name}', "
                                   f"got shape {q.shape}")
         return q

@@ -21,7 +21,8 @@ from prehensile.model.geometry import Geometry, shape_to_trimesh
 from prehensile.scene.scene import Scene
 from prehensile.storage import atomic_write_bytes
 
-ROBOT_COLORS = ("#8fa3bf", "#a993c4", "#7fb0b8", "#c49bb4", "#9aa7b0")
+ROBOT_COLORS = ("#8fa3bf", "#a993c4", "#7fb0b8", "#c49bb4", "#9aa7b0")  # the scene's robots in turn
+ROBOT_COLOR_NAMES = ("blue-grey", "lilac", "teal", "mauve", "grey")  # for titles and legends
 OBSTACLE_COLOR = "#c8b28a"
 OBJECT_COLOR = "#6fae6f"
 COLLISION_COLOR = "#e0261b"
