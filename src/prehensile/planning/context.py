@@ -292,7 +292,7 @@ class PlanningContext:
                                          kernel_acm, static_hit=False)
         self.static_free(self.space.q_ref)  # tested now, outside the planners' clocks
         self.motion = self._motion_tables()
-        """(Wball (dof, S), Wgroup (G, D), qgroup (G, D), pcut (P, 2), scales, queue (Q, 2),
+        """(Wball (dof, S), Wgroup (G, D), qgroup (G, D), pcut (P, 2), scales, queue (Q, 3),
         q (dof,), dq (dof + 1,), below (G, D + 1), first column 0) for
         :func:`prehensile.planning.kernels.motion_free`: per variable the weight of each ball
         of the sphere checker (all joints on its path); per group (link with balls) the moving
@@ -375,7 +375,7 @@ class PlanningContext:
         scales = (np.empty(len(granges)), np.empty((len(pairs), 2)), np.empty(len(W)))
         span = np.where(np.isfinite(model.upper - model.lower), model.upper - model.lower, 2 * np.pi)
         self._longest = float(np.max(span @ Wball, initial=0.0))  # farthest a ball can move on any segment
-        return (np.ascontiguousarray(Wball), Wgroup, qgroup, pcut, scales, np.empty((0, 2)), np.empty(model.dof),
+        return (np.ascontiguousarray(Wball), Wgroup, qgroup, pcut, scales, np.empty((0, 3)), np.empty(model.dof),
                 np.zeros(model.dof + 1), np.zeros((len(granges), depth + 1)))
 
     def motion_arrays(self, resolution: float) -> tuple:
@@ -383,7 +383,7 @@ class PlanningContext:
         open intervals are separated by covered stretches of at least one resolution step."""
         need = int(self._longest / resolution) + 8
         if len(self.motion[5]) < need:
-            self.motion = self.motion[:5] + (np.empty((need, 2)),) + self.motion[6:]
+            self.motion = self.motion[:5] + (np.empty((need, 3)),) + self.motion[6:]
         return self.motion
 
     def refined(self, links: set[str]) -> PlanningContext | None:

@@ -10,8 +10,12 @@ configuration at s with scaled clearance c proves the whole stretch [s - c, s + 
 ball can travel farther than its distance to anything it may hit ("free bubbles", Quinlan
 1995; Vahrenkamp 2011 C.2). The check tests the ends not known free first (qb, a planner's new
 node, then qa), then the midpoints of the stretches not yet covered, breadth first (a
-bisection order, so a collision in the middle shows early). Ends known free (tree nodes, path
-points) are not evaluated: their neighbourhoods are covered like any other stretch.
+bisection order, so a collision in the middle shows early). A stretch no wider than two
+bubbles like the one beside it is tested one such bubble radius in from that side instead:
+where the clearance changes little, two evaluations then cover it, where its midpoint would
+leave two slivers (2.4 % fewer evaluations in the median of the 400 MotionBenchMaker Panda
+problems). Ends known free (tree nodes, path points) are not evaluated: their
+neighbourhoods are covered like any other stretch.
 
 Resolution (Vahrenkamp 2011 B.2). Sampling so that no ball moves more than ``resolution``
 between checks lets a ball overlap what it passes by up to half a resolution step between
@@ -177,30 +181,33 @@ def motion_free(qa, qb, res, checker, scratch, motion, counters, budget, new_end
         return FREE
     size = queue.shape[0]
     head, tail = 0, 1
-    queue[0, 0], queue[0, 1] = lo, hi
+    queue[0, 0], queue[0, 1], queue[0, 2] = lo, hi, 0.0
     while head < tail:
         if spent >= budget:
             return UNDECIDED
-        a, b = queue[head % size, 0], queue[head % size, 1]
+        a, b, near = queue[head % size, 0], queue[head % size, 1], queue[head % size, 2]
         head += 1
         mid, h = 0.5 * (a + b), 0.5 * (b - a)
+        if abs(near) < h <= 2.0 * abs(near):  # near: the radius of the bubble beside a (> 0) or b (< 0)
+            mid = a + near if near > 0.0 else b + near
         for k in range(q.shape[0]):
             q[k] = qa[k] + mid * (qb[k] - qa[k])
         counters[0] += 1
         spent += 1
-        cover = SK.clearance(q, checker, scratch, min(h, _CAP) if h > half else 0.0, scales, slack)
+        need = max(mid - a, b - mid)  # the bubble that covers (a, b)
+        cover = SK.clearance(q, checker, scratch, min(need, _CAP) if need > half else 0.0, scales, slack)
         if cover < 0.0:
             return BLOCKED
         r = max(cover, half)
-        if r >= h:
+        if mid - r <= a and b <= mid + r:
             continue
         if tail - head + 2 > size:  # cannot happen with the queue of motion_arrays(res); stay sound
             return BLOCKED
         if mid - r > a:
-            queue[tail % size, 0], queue[tail % size, 1] = a, mid - r
+            queue[tail % size, 0], queue[tail % size, 1], queue[tail % size, 2] = a, mid - r, -r
             tail += 1
         if b > mid + r:
-            queue[tail % size, 0], queue[tail % size, 1] = mid + r, b
+            queue[tail % size, 0], queue[tail % size, 1], queue[tail % size, 2] = mid + r, b, r
             tail += 1
     return FREE
 
