@@ -180,7 +180,7 @@ def write_outputs(result, context, scene: Scene, robot: PlacedRobot, report: dic
     from prehensile.planning.trajectory import model_limits, time_parameterize
     from prehensile.storage import atomic_write_json
     from prehensile.viz import render_scene
-    from prehensile.viz.picture import ROBOT_COLOR_NAMES
+    from prehensile.viz.picture import robot_color
 
     written = [atomic_write_json(out / "path.json", report)]
     if result.success:
@@ -199,7 +199,7 @@ def write_outputs(result, context, scene: Scene, robot: PlacedRobot, report: dic
         inner = result.path[1:-1]
         picks = inner[np.linspace(0, len(inner) - 1, min(PICTURE_WAYPOINTS, len(inner))).round().astype(int)]
         shown = np.concatenate([result.path[:1], picks, result.path[-1:]])
-        title = (f"{robot.name} from start ({ROBOT_COLOR_NAMES[0]}) to goal ({ROBOT_COLOR_NAMES[len(shown) - 1]}): "
+        title = (f"{robot.name} from start ({robot_color(0)[1]}) to goal ({robot_color(len(shown) - 1)[1]}): "
                  f"{len(result.path)} waypoints, "
                  f"{report['path_length_m']:.2f} m weighted length, {trajectory.duration:.2f} s")
     else:

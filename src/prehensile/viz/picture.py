@@ -33,6 +33,12 @@ _MAX_EDGE = 0.08  # m
 _LIGHT = np.array([0.35, -0.45, 0.82]) / np.linalg.norm([0.35, -0.45, 0.82])
 
 
+def robot_color(index: int) -> tuple[str, str]:
+    """(hex colour, its name) of the scene's robot ``index`` in pictures (the palette repeats)."""
+    k = index % len(ROBOT_COLORS)
+    return ROBOT_COLORS[k], ROBOT_COLOR_NAMES[k]
+
+
 def decimate(vertices: np.ndarray, faces: np.ndarray, max_faces: int) -> tuple[np.ndarray, np.ndarray]:
     """Reduce a triangle mesh to about ``max_faces`` faces by vertex clustering.
 
@@ -128,7 +134,7 @@ def scene_triangles(
             per_link.setdefault(link, []).append(_triangles(geometry, T, max_faces, cache))
         for link, tris in per_link.items():
             tris = np.concatenate(tris)
-            parts.append((tris, COLLISION_COLOR if link in red else ROBOT_COLORS[r % len(ROBOT_COLORS)]))
+            parts.append((tris, COLLISION_COLOR if link in red else robot_color(r)[0]))
             if link in red:
                 labels.append((f"{robot.name}/{link}", tris.reshape(-1, 3).mean(axis=0)))
     for bodies, color in ((scene.obstacles, OBSTACLE_COLOR), (scene.objects, OBJECT_COLOR)):
