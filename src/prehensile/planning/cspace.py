@@ -139,23 +139,28 @@ class ConfigurationSpace:
         return (np.where(self.continuous, center - np.pi, self.lower),
                 np.where(self.continuous, center + np.pi, self.upper))
 
-    def goal_turns(self, qa: np.ndarray, ref: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Goals qa (k, n) as reached from ``ref`` (n,) either way round a continuous joint.
+    def goal_turns(self, goals: np.ndarray, ref: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Goals (k, dof) as reached from ``ref`` (dof,) either way round a continuous joint.
 
         Per goal: :meth:`nearest_turn` (the shorter way for every continuous joint), then for
         each continuous joint the same goal with that joint one turn the other way (the longer
-        way, when the shorter one is blocked). Returns (goals (m, n), row of qa of each (m,)).
+        way, when the shorter one is blocked). Returns (goals (m, dof), row of ``goals`` of each
+        (m,)); without continuous joints ``goals`` itself.
         """
         if not self.continuous.any():
-            return qa, np.arange(len(qa))
-        near = self.nearest_turn(qa, ref)
+            return goals, np.arange(len(goals))
+        ref = ref[self.indices]
+        near = self.nearest_turn(goals[:, self.indices], ref)
         out, rows = [near], [np.arange(len(near))]
         for j in np.flatnonzero(self.continuous):
             other = near.copy()
             other[:, j] -= 2 * np.pi * np.where(near[:, j] >= ref[j], 1.0, -1.0)
             out.append(other)
             rows.append(rows[0])
-        return np.concatenate(out), np.concatenate(rows)
+        rows = np.concatenate(rows)
+        turned = goals[rows]
+        turned[:, self.indices] = np.concatenate(out)
+        return turned, rows
 
     def nearest_turn(self, qa: np.ndarray, ref: np.ndarray) -> np.ndarray:
         """Active vectors qa (*batch, n) with each continuous joint moved by whole turns (2 pi)

@@ -81,6 +81,15 @@ def distance(a, b, idx, w):
     return d
 
 
+@njit(cache=True, _nrt=False)
+def path_length(path, idx, w):
+    """Workspace-weighted length (m) of path (N, dof) over the variables idx (n,) with weights w (n,)."""
+    total = 0.0
+    for i in range(path.shape[0] - 1):
+        total += distance(path[i], path[i + 1], idx, w)
+    return total
+
+
 @njit(cache=True, fastmath=FAST, _nrt=False)
 def nearest(points, count, x, idx, w, work):
     """(index, distance) of the node nearest to x (dof,) among the first ``count`` nodes, given

@@ -48,11 +48,11 @@ from prehensile.planning.certify import ESCAPE_ATTEMPTS, CertifyReport, certifie
 from prehensile.planning.context import PlanningContext
 from prehensile.planning.cspace import ConfigurationSpace
 from prehensile.planning.kernels import (
-    BLOCKED, FREE, NO_LIMIT, assign, distance, motion_free, nearest, rng_state, uniform,
+    BLOCKED, FREE, NO_LIMIT, assign, distance, motion_free, nearest, path_length, rng_state, uniform,
 )
 from prehensile.planning.result import PlanResult, PlanStats, PlanStatus
 from prehensile.planning.seeding import planner_rng
-from prehensile.planning.shortcut import prune, shortcut_checked, waypoint_marks
+from prehensile.planning.shortcut import prune, shortcut_rows, waypoint_marks
 
 RUNNING, FOUND, FULL = 0, 1, 2  # kernel results
 _TRAPPED, _ADVANCED, _REACHED, _NO_ROOM = 0, 1, 2, 3  # extension results
@@ -295,16 +295,17 @@ def search(nodes, parents, flags, points, work, counters, path, marks, owner, pr
 
 
 class _Trees:
-    """Tree arrays for :func:`search` in the space ``space``, doubled when full."""
+    """Tree arrays for :func:`search` in the space ``space``, doubled when full. The path rows
+    (``path``, ``marks``) have ``spare`` rows more than the trees' nodes, for the points that
+    shortcutting inserts in place."""
 
-    def __init__(self, start_nodes: list, capacity: int, space: ConfigurationSpace) -> None:
-        self.space, dof = space, space.model.dof
+    def __init__(self, start_nodes: list, capacity: int, space: ConfigurationSpace, spare: int) -> None:
+        self.space, self.spare, dof = space, spare, space.model.dof
         self.nodes = np.empty((2, capacity, dof))
         self.parents = np.full((2, capacity), -1, dtype=np.int64)
         self.flags = np.zeros((2, capacity), dtype=np.int64)
         self.points, self.work = np.empty((2, space.n, capacity)), np.empty(capacity)
-        self.path, self.marks, self.owner = np.empty((2 * capacity, dof)), waypoint_marks(2 * capacity), \
-            np.empty(2 * capacity, dtype=np.int64)
+        self._path_rows(2 * capacity)
         self.counters = np.zeros(8, dtype=np.int64)
         self.append(0, start_nodes)
         self.counters[START_NODES] = len(start_nodes)
@@ -337,9 +338,15 @@ class _Trees:
         nodes[:, :capacity], parents[:, :capacity], flags[:, :capacity] = self.nodes, self.parents, self.flags
         points[:, :, :capacity] = self.points
         self.nodes, self.parents, self.flags, self.points = nodes, parents, flags, points
-        self.path, self.work = np.empty((2 * bigger, nodes.shape[2])), np.empty(bigger)
-        self.marks, self.owner = waypoint_marks(2 * bigger), np.empty(2 * bigger, dtype=np.int64)
+        self.work = np.empty(bigger)
+        self._path_rows(2 * bigger)
         return True
+
+    def _path_rows(self, nodes: int) -> None:
+        """Path arrays for paths through up to ``nodes`` tree nodes."""
+        rows = nodes + self.spare
+        self.path, self.marks = np.empty((rows, self.nodes.shape[2])), waypoint_marks(rows)
+        self.owner = np.empty(rows, dtype=np.int64)
 
 
 def _endpoints(ctx: PlanningContext, qs: np.ndarray, toward: np.ndarray, settings: RRTConnectSettings,
@@ -419,9 +426,7 @@ class RRTConnectSearch:
             raise PrehensileError("rrt_connect: goal and start differ in joints that are not planned "
                                   f"({', '.join(model.joint_names[i] for i in differ)}; planned: "
                                   f"{', '.join(space.joint_names)})")
-        turns, rows = space.goal_turns(goals[:, space.indices], self.start[space.indices])
-        planned = goals[rows]
-        planned[:, space.indices] = turns
+        planned, rows = space.goal_turns(goals, self.start)
         first = len(self.goals)
         self.goals = np.concatenate((self.goals, planned))
         self.goal_of = np.concatenate((self.goal_of, self.given + rows))
@@ -455,7 +460,8 @@ class RRTConnectSearch:
         # a start cut off by the deadline (no escape found yet) may find one in a later solve
         self.start_status = PlanStatus.INVALID_START if start is None and clock() < deadline else None
         if start is not None:
-            self.trees = _Trees(start, min(1024, self.settings.max_nodes), self.context.space)
+            self.trees = _Trees(start, min(1024, self.settings.max_nodes), self.context.space,
+                                self.settings.shortcut_iterations)
             self.escapes = len(start) - 1
             self._add_goal_nodes(0, goal_nodes)
 
@@ -474,9 +480,9 @@ class RRTConnectSearch:
             self.context, self.refined = finer, links
         self.trees = None
 
-    def _run(self, deadline: float, iterations: int) -> tuple[np.ndarray | None, int]:
+    def _run(self, deadline: float, iterations: int) -> tuple[int, int]:
         """Resume the search until ``deadline`` (s, :func:`~prehensile.clock.clock`) or for at most
-        ``iterations``; (path or None, goal root)."""
+        ``iterations``; (waypoints of the path found in ``trees.path``, goal root), or (0, -1)."""
         space, trees, settings = self.context.space, self.trees, self.settings
         work = (*space.sampling_bounds(self.start[space.indices]), self.start.copy(), self.context.spheres.data,
                 self.context.scratch, self.context.motion_arrays(self.res))
@@ -492,10 +498,10 @@ class RRTConnectSearch:
             trees.counters[DIRECT] = trees.counters[SIZE + 1]  # only goals added later get direct edges
             now = clock()
             if code == FOUND:
-                return trees.path[:trees.counters[PATH_LENGTH]].copy(), int(trees.counters[GOAL_ROOT])
+                return int(trees.counters[PATH_LENGTH]), int(trees.counters[GOAL_ROOT])
             if (code == FULL and not trees.grow(settings.max_nodes) or now >= deadline
                     or trees.counters[ITERATIONS] >= last):
-                return None, -1
+                return 0, -1
             per_iteration = (now - begun) / max(trees.counters[ITERATIONS] - before, 1)
             # a quarter of the time left, growing at most twofold (iterations slow down as trees grow)
             chunk = int(min(max(0.25 * (deadline - now) / max(per_iteration, 1e-7), 1), 2 * chunk))
@@ -535,22 +541,23 @@ class RRTConnectSearch:
                 # the covering balls of the refined context reject an end the planning balls let through
                 return PlanResult(status, empty, PlanStats(**totals), info=self._failure_info(attempt, report))
             before = self.trees.counters.copy()
-            path, root = self._run(deadline, NO_LIMIT if max_iterations is None else max_iterations)
+            n, root = self._run(deadline, NO_LIMIT if max_iterations is None else max_iterations)
             counters = self.trees.counters - before
             totals["plan_time_s"] += clock() - (t0 if attempt == 0 else begun)
             totals["iterations"] += int(counters[ITERATIONS])
             totals["nodes"] = int(self.trees.counters[SIZE] + self.trees.counters[SIZE + 1])
             totals["collision_checks"] += int(counters[CHECKS])
-            if path is None:
+            if n == 0:
                 status = PlanStatus.TIMEOUT if report is None else PlanStatus.CERTIFICATION_FAILED
                 return PlanResult(status, empty, PlanStats(**totals), info=self._failure_info(attempt, report))
-            if settings.shortcut and len(path) >= 3:
+            trees = self.trees
+            if settings.shortcut and n >= 3:  # in place: the search pruned the path already
                 begun = clock()
-                path = shortcut_checked(self.context, path, self.rng, settings.shortcut_iterations,
-                                        settings.shortcut_time_s, self.res, checks, pruned=self.trees.marks)
+                n = shortcut_rows(self.context, trees.path, n, trees.marks, self.rng, settings.shortcut_iterations,
+                                  settings.shortcut_time_s, self.res, checks, prune_first=False)
                 totals["simplify_time_s"] += clock() - begun
-            space = self.context.space
-            info = {"attempts": attempt + 1, "length": space.path_length(path[:, space.indices]),
+            path, space = trees.path[:n].copy(), self.context.space
+            info = {"attempts": attempt + 1, "length": path_length(path, space.indices, space.weights),
                     "escapes": self.escapes, "refined": tuple(sorted(self.refined))}
             if settings.certify:
                 report = certify_path(self.context, path)

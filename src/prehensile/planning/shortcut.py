@@ -210,19 +210,27 @@ def shortcut_checked(ctx: PlanningContext, path: np.ndarray, rng: np.random.Gene
     ids, checked, memo = waypoint_marks(len(buffer))
     ids[:len(path)] = np.arange(len(path)) if pruned is None else pruned[0][:len(path)]
     marks = (ids, checked, memo if pruned is None else pruned[2].copy())
+    n = shortcut_rows(ctx, buffer, len(path), marks, rng, iterations, time_budget_s, res, stats, pruned is None)
+    return buffer[:n].copy()
+
+
+def shortcut_rows(ctx: PlanningContext, buffer: np.ndarray, n: int, marks: tuple, rng: np.random.Generator,
+                  iterations: int, time_budget_s: float, res: float, stats: np.ndarray | None,
+                  prune_first: bool) -> int:
+    """Shortcut the valid path buffer[:n] (n >= 3) in place, pruning it first if ``prune_first``;
+    returns the new count. ``buffer`` (rows >= n + iterations, dof) and ``marks``
+    (:func:`waypoint_marks` of as many rows, ids set for the first n) are overwritten."""
     work = (ctx.space.indices, ctx.space.weights, res, ctx.spheres.data, ctx.scratch, ctx.motion_arrays(res),
             np.zeros(1, dtype=np.int64) if stats is None else stats, np.empty(len(buffer)),
             np.empty(ctx.model.dof), np.empty(ctx.model.dof))
-    state, n, done = rng_state(rng), len(path), 0
+    state, done = rng_state(rng), 0
     start = clock()
     while True:  # chunks of random attempts (64, 64, 128, ...) until done or out of time
         count = min(max(64, done), iterations - done)
         last = done + count >= iterations
-        n = simplify(buffer, n, marks, count, pruned is None and done == 0, last, state, *work)
+        n = simplify(buffer, n, marks, count, prune_first and done == 0, last, state, *work)
         done += count
         if last:
-            break
+            return n
         if clock() - start >= time_budget_s:
-            n = simplify(buffer, n, marks, 0, False, True, state, *work)
-            break
-    return buffer[:n].copy()
+            return simplify(buffer, n, marks, 0, False, True, state, *work)
