@@ -73,6 +73,8 @@ def test_regrasp_ik_rrt_free_object(scene):
     s = arms[0].settings
     assert_hand_over(ctx, arms, grasps, result.path, q0, result.info["goal"], s.position_tolerance,
                      s.rotation_tolerance)
+    i, j = result.info["goal"]["grasps"]
+    assert result.goal_index == i * len(grasps[1]) + j  # the pair as one index, as in J+-RRT
     again = ik_rrt(ctx, q0, sampler, IK_RRT, rng=3)
     assert np.array_equal(again.path, result.path)
 

@@ -42,7 +42,8 @@ from prehensile.spatial.transforms import invert
 # a goal sampler draws one goal configuration (dof,) or None, and what it reached (grasp
 # indices, object pose, ...), from (rng, call, attempts, budget): the call's number in the
 # query (0 first), a fixed amount of IK work (its unit is the sampler's) and a time limit
-# (s); "grasp" is the index of a single target pose reached (the planners' ``goal_index``).
+# (s); "grasp" is the planners' ``goal_index``: the target pose reached, or for two hands the
+# pair of poses reached as one index in C order (:func:`_pair_info`, as in J+-RRT).
 # Goals must be valid (PlanningContext.is_valid); the one-arm sampler also keeps goals only
 # the conservative balls reject (is_usable_end: a hand around an object), the two-hand
 # samplers do not: their hands are close in every solution, and each such goal would need a
@@ -133,8 +134,9 @@ def ik_rrt(ctx: PlanningContext, q_start: np.ndarray, sampler: GoalSampler, sett
     """Plan from ``q_start`` to any goal configuration the IK ``sampler`` finds.
 
     Returns:
-        :class:`PlanResult`; ``goal_index`` is the target pose reached (as in
-        :func:`~prehensile.planning.jplus_rrt.jplus_rrt`; -1 for samplers of pose pairs), ``info``
+        :class:`PlanResult`; ``goal_index`` is the target pose reached, for two hands the
+        pair (i, j) of their pose sets' poses as the index ``i * k_b + j`` (as in
+        :func:`~prehensile.planning.jplus_rrt.jplus_rrt` and its bimanual variants), ``info``
         holds what the winning sample reached (``info["goal"]``, e.g. the grasp pair), which
         of the goal configurations sampled it was (``goal_configuration``) and how many were
         (``goal_configurations``). TIMEOUT or NO_GOAL_CONFIGURATION (IK found nothing) when
@@ -221,9 +223,16 @@ def dual_arm_sampler(ctx: PlanningContext, arms: Sequence[ChainSolver], target_p
         result = solve_ik_hybrid(arms, target_poses, free, _random_seed(arms, q_ref, rng), rng,
                                  HybridIKSettings(time_budget_s=max(budget, 1e-6), max_samples=attempts),
                                  is_valid=ctx.is_valid)
-        return (result.q, {"grasps": result.target_indices}) if result.success else (None, {})
+        return (result.q, _pair_info(result.target_indices, target_poses)) if result.success else (None, {})
 
     return sample
+
+
+def _pair_info(indices: tuple[int, int], pose_sets: Sequence[np.ndarray]) -> dict:
+    """What a two-hand goal reached: ``grasps`` (i, j), the pose of each hand's set (k_a, 4, 4),
+    (k_b, 4, 4), and ``grasp`` = i * k_b + j, the pair as one index."""
+    sizes = tuple(len(np.reshape(poses, (-1, 4, 4))) for poses in pose_sets)
+    return {"grasps": indices, "grasp": int(np.ravel_multi_index(indices, sizes))}
 
 
 def regrasp_sampler(ctx: PlanningContext, arms: Sequence[ChainSolver], grasps: Sequence[np.ndarray],
@@ -246,7 +255,7 @@ def regrasp_sampler(ctx: PlanningContext, arms: Sequence[ChainSolver], grasps: S
                                                   is_valid=ctx.is_valid, max_batches=attempts)
         if not result.success:
             return None, {}
-        return result.q, {"grasps": result.target_indices, "T_world_object": T_world_object}
+        return result.q, {**_pair_info(result.target_indices, grasps), "T_world_object": T_world_object}
 
     return sample
 
