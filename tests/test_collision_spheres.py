@@ -248,12 +248,15 @@ def test_world_clearance_is_the_exact_ball_distance():
     capped = checker.clearance(q[free], cap=0.05, self_pairs=False)
     assert np.allclose(capped, np.minimum(truth[free], 0.05), atol=1e-9)
 
-    # screen: both verdicts of one call agree with is_free and the world clearance
-    margin = 0.05
-    screened_free, near = checker.screen(q.reshape(20, 20, -1), margin)
-    assert screened_free.shape == near.shape == (20, 20)
-    assert np.array_equal(screened_free.ravel(), checker.is_free(q))
-    assert np.array_equal(near.ravel(), clearance < margin)
+    # screen: the three verdicts of one call agree with within_limits, is_free and the world clearance
+    margin, outside = 0.05, q.copy()
+    outside[::3, 0] = model.upper[0] + 1e-6
+    inside, screened_free, near = checker.screen(outside.reshape(20, 20, -1), margin)
+    assert inside.shape == screened_free.shape == near.shape == (20, 20)
+    assert np.array_equal(inside.ravel(), model.within_limits(outside)) and not inside.all()
+    screened_free, near = checker.screen(q, margin)[1:]
+    assert np.array_equal(screened_free, checker.is_free(q))
+    assert np.array_equal(near, clearance < margin)
     assert 20 < (near.ravel() & free).sum() < free.sum() - 20  # near and far free configurations
 
 

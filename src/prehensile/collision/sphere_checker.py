@@ -27,7 +27,7 @@ from prehensile.collision.world import Obstacle, check_obstacles
 from prehensile.errors import PrehensileError
 from prehensile.kinematics.forward import forward_kinematics
 from prehensile.model.geometry import Box, Capsule, Cylinder, Geometry, Mesh, Sphere
-from prehensile.model.robot_model import RobotModel
+from prehensile.model.robot_model import LIMIT_TOLERANCE, RobotModel
 from prehensile.spatial.transforms import check_one_pose
 
 
@@ -187,6 +187,7 @@ class SphereChecker:
                  spheres: SphereModel | None = None, acm: np.ndarray | None = None, mesh_boxes: int = 32,
                  static_hit: bool | None = None) -> None:
         self.model = model
+        self._limits = (model.lower - LIMIT_TOLERANCE, model.upper + LIMIT_TOLERANCE)  # for screen
         self.spheres = generate_sphere_model(model) if spheres is None else spheres
         if tuple(self.spheres.link_names) != tuple(model.link_names):
             raise PrehensileError("SphereChecker: the sphere model belongs to a different robot (link lists differ)")
@@ -289,17 +290,18 @@ class SphereChecker:
             K.clearance_batch(flat, data, self._scratch, float(cap), scales, out)
         return out.reshape(q.shape[:-1])
 
-    def screen(self, q: np.ndarray, margin: float) -> tuple[np.ndarray, np.ndarray]:
-        """(free, near), each (*batch,) bool, for q (*batch, dof): ``free`` as :meth:`is_free`,
-        ``near``: some ball is closer than ``margin`` (m) to an obstacle (as
-        ``clearance(q, self_pairs=False) < margin``); one compiled call for both."""
+    def screen(self, q: np.ndarray, margin: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(inside, free, near), each (*batch,) bool, for q (*batch, dof): ``inside``: within the
+        joint limits (as :meth:`RobotModel.within_limits`), ``free`` as :meth:`is_free`, ``near``:
+        some ball is closer than ``margin`` (m) to an obstacle (as ``clearance(q, self_pairs=False)
+        < margin``); one compiled call for the three, the tests a planner runs on a path's ends."""
         q, flat = self._batch(q)
-        free, near = np.empty(len(flat), dtype=np.bool_), np.empty(len(flat), dtype=np.bool_)
+        inside, free, near = (np.empty(len(flat), dtype=np.bool_) for _ in range(3))
+        K.screen_batch(flat, *self._limits, self.data, self._scratch, self._scales, self._world_only[1], float(margin),
+                       inside, free, near)
         if self.static_hit:
             free[:], near[:] = False, True
-        else:
-            K.screen_batch(flat, self.data, self._scratch, self._scales, self._world_only[1], float(margin), free, near)
-        return free.reshape(q.shape[:-1]), near.reshape(q.shape[:-1])
+        return inside.reshape(q.shape[:-1]), free.reshape(q.shape[:-1]), near.reshape(q.shape[:-1])
 
     def first_collision(self, q_path: np.ndarray) -> int:
         """Index of the first colliding configuration of q_path (N, dof), or -1 if all are free.

@@ -256,13 +256,16 @@ def clearance_batch(qs, data, scratch, cap, scales, out):
 
 
 @njit(cache=True, fastmath=FAST)
-def screen_batch(qs, data, scratch, scales, world_scales, margin, free, near):
-    """For configurations qs (B, dof): free[b] = qs[b] is free (as :func:`check_batch`), near[b] =
-    some ball is closer than ``margin`` (m) to an obstacle (``world_scales``: :func:`unit_scales`
-    of ``data``). One compiled call for both tests, given ``data`` once (each array passed
-    costs the call time)."""
+def screen_batch(qs, lower, upper, data, scratch, scales, world_scales, margin, inside, free, near):
+    """For configurations qs (B, dof): inside[b] = qs[b] lies within [lower, upper] (dof,),
+    free[b] = it is free (as :func:`check_batch`), near[b] = some ball is closer than ``margin``
+    (m) to an obstacle (``world_scales``: :func:`unit_scales` of ``data``). One compiled call for
+    the three tests, given ``data`` once (each array passed costs the call time)."""
     world = data[:-1] + (data[-1][:0],)  # without self pairs
     for b in range(qs.shape[0]):
+        inside[b] = True
+        for k in range(qs.shape[1]):
+            inside[b] &= lower[k] <= qs[b, k] <= upper[k]
         free[b] = clearance(qs[b], data, scratch, 0.0, scales, 0.0) >= 0.0
         near[b] = clearance(qs[b], world, scratch, margin, world_scales, 0.0) < margin
 

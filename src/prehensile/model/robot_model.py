@@ -19,6 +19,8 @@ import numpy as np
 from prehensile.errors import PrehensileError, UnknownFrameError
 from prehensile.model.geometry import Geometry
 
+LIMIT_TOLERANCE = 1e-9  # (rad or m) a value this far outside a joint's limits still counts as inside
+
 FIXED, REVOLUTE, PRISMATIC = 0, 1, 2
 
 
@@ -220,7 +222,7 @@ class RobotModel:
         size = (self.dof,) if n is None else (n, self.dof)
         return rng.uniform(lo, hi, size=size)
 
-    def within_limits(self, q: np.ndarray, tol: float = 1e-9) -> np.ndarray:
+    def within_limits(self, q: np.ndarray, tol: float = LIMIT_TOLERANCE) -> np.ndarray:
         """(*batch,) bool: q of shape (*batch, dof) lies within the position limits."""
         q = np.asarray(q, dtype=float)
         return ((q >= self.lower - tol) & (q <= self.upper + tol)).all(axis=-1)

@@ -357,8 +357,8 @@ def _endpoints(ctx: PlanningContext, qs: np.ndarray, toward: np.ndarray, setting
     :func:`~prehensile.clock.clock`), every other row ``ESCAPE_ATTEMPTS`` directions or until
     then: a row the balls accept is a node without one); None if it is unusable (outside the
     limits, or colliding for the balls without an escape)."""
-    inside = ctx.model.within_limits(qs) & ctx.static_free(qs)  # no escape from a static contact
-    free, near = ctx.spheres.screen(qs, 0.5 * ctx.resolution)
+    inside, free, near = ctx.spheres.screen(qs, 0.5 * ctx.resolution)
+    inside &= ctx.static_free(qs)  # no escape from a static contact
     valid, tight = inside & free, inside & near
     out: list[list | None] = []
     for i, q in enumerate(qs):
