@@ -197,7 +197,9 @@ def _write_path(nodes, parents, flags, counters, start_node, goal_node, joined, 
     counters[GOAL_ROOT] = root
     for i in range(m):
         ids[i] = i
-    for i in range(memo.shape[0]):
+    for i in range(memo.shape[0]):  # the blocked pairs fill a prefix of the rows
+        if memo[i, 0] < 0:
+            break
         memo[i, 0] = memo[i, 1] = -1
     return m
 
