@@ -23,7 +23,7 @@ from prehensile.collision import sphere_kernels as SK
 from prehensile.planning.certify import certified_escape
 from prehensile.planning.context import ball_joint_weights
 from prehensile.planning.kernels import BLOCKED, FREE, NO_LIMIT, _scales, motion_free
-from prehensile.planning.shortcut import prune, waypoint_marks
+from prehensile.planning.shortcut import prune, shortcut_rows, waypoint_marks
 from prehensile.spatial import make_pose
 
 from conftest import MBM, WEDGE, require_shared
@@ -488,12 +488,16 @@ def test_shortcut_never_lengthens_nor_invalidates(arm):
         marks = (ids[:n].copy(), checked[:n].copy(), remembered.copy())
         again.append((prune(path[:n].copy(), n, marks, *work, spent), spent[0]))
     assert again[0][0] == again[1][0] and again[0][1] < again[1][1]
-    # ... also when the shortcut is handed the marks of the pruning the path had
+    # ... also when the shortcut is handed the marks of the pruning the path had (as the planner does)
     handed = []
     for remembered in (memo, np.full_like(memo, -1)):
-        spent = np.zeros(1, int)
-        short = shortcut(ctx, path[:n], np.random.default_rng(1), 4, stats=spent, pruned=(ids, checked, remembered))
-        handed.append((short, spent[0]))
+        spent, buffer = np.zeros(1, int), np.empty((len(detour) + 4, model.dof))
+        buffer[:n] = path[:n]
+        marks = waypoint_marks(len(buffer))
+        marks[0][:n], marks[2][:len(memo)] = ids[:n], remembered
+        m = shortcut_rows(ctx, buffer, n, marks, np.random.default_rng(1), 4, 0.05, ctx.resolution, spent,
+                          prune_first=False)
+        handed.append((buffer[:m], spent[0]))
     np.testing.assert_array_equal(handed[0][0], handed[1][0])
     assert handed[0][1] < handed[1][1]
     empty = PlanningContext(model, [], spheres=spheres)

@@ -170,7 +170,7 @@ def simplify(path, n, marks, iterations, first, last, rng, idx, w, res, checker,
 
 def shortcut(ctx: PlanningContext, path: np.ndarray, rng: np.random.Generator | int | None, iterations: int = 100,
              time_budget_s: float = 0.05, resolution: float | None = None,
-             stats: np.ndarray | None = None, pruned: tuple | None = None) -> np.ndarray:
+             stats: np.ndarray | None = None) -> np.ndarray:
     """A shorter path with the same ends: pruning, random shortcuts, pruning.
 
     Args:
@@ -182,9 +182,6 @@ def shortcut(ctx: PlanningContext, path: np.ndarray, rng: np.random.Generator | 
         time_budget_s: stop the random attempts after this time (s).
         resolution: edge-check resolution (m); default ``ctx.resolution``.
         stats: optional (1,) int64 counter of clearance evaluations (incremented).
-        pruned: the marks (:func:`waypoint_marks`) of a pruning the path has had already, rows
-            matching it: it is not pruned again first, and the pairs found blocked then are
-            not checked again.
 
     Returns:
         (M, dof) waypoints, M <= N + iterations, first and last equal to the input's.
@@ -198,28 +195,23 @@ def shortcut(ctx: PlanningContext, path: np.ndarray, rng: np.random.Generator | 
     res = ctx.resolution if resolution is None else float(resolution)
     if not res > 0:
         raise PrehensileError(f"shortcut: resolution must be positive (m), got {resolution}")
-    return shortcut_checked(ctx, path, planner_rng(rng), int(iterations), time_budget_s, res, stats, pruned)
-
-
-def shortcut_checked(ctx: PlanningContext, path: np.ndarray, rng: np.random.Generator, iterations: int,
-                     time_budget_s: float, res: float, stats: np.ndarray | None = None,
-                     pruned: tuple | None = None) -> np.ndarray:
-    """:func:`shortcut` of a path known valid: (N >= 3, dof) float64, within the planned joints."""
-    buffer = np.empty((len(path) + iterations, ctx.model.dof))
+    buffer = np.empty((len(path) + int(iterations), ctx.model.dof))
     buffer[:len(path)] = path
-    ids, checked, memo = waypoint_marks(len(buffer))
-    ids[:len(path)] = np.arange(len(path)) if pruned is None else pruned[0][:len(path)]
-    marks = (ids, checked, memo if pruned is None else pruned[2].copy())
-    n = shortcut_rows(ctx, buffer, len(path), marks, rng, iterations, time_budget_s, res, stats, pruned is None)
+    marks = waypoint_marks(len(buffer))
+    marks[0][:len(path)] = np.arange(len(path))
+    n = shortcut_rows(ctx, buffer, len(path), marks, planner_rng(rng), int(iterations), time_budget_s, res, stats,
+                      prune_first=True)
     return buffer[:n].copy()
 
 
 def shortcut_rows(ctx: PlanningContext, buffer: np.ndarray, n: int, marks: tuple, rng: np.random.Generator,
                   iterations: int, time_budget_s: float, res: float, stats: np.ndarray | None,
                   prune_first: bool) -> int:
-    """Shortcut the valid path buffer[:n] (n >= 3) in place, pruning it first if ``prune_first``;
-    returns the new count. ``buffer`` (rows >= n + iterations, dof) and ``marks``
-    (:func:`waypoint_marks` of as many rows, ids set for the first n) are overwritten."""
+    """:func:`shortcut` of the valid path buffer[:n] (n >= 3), in place; returns the new count.
+    ``buffer`` (rows >= n + iterations, dof) and ``marks`` (:func:`waypoint_marks` of as many
+    rows, ids set for the first n) are overwritten. Without ``prune_first`` the path is not
+    pruned first: it has been (:func:`prune`, with these marks), and the pairs its memo holds
+    blocked are not checked again."""
     work = (ctx.space.indices, ctx.space.weights, res, ctx.spheres.data, ctx.scratch, ctx.motion_arrays(res),
             np.zeros(1, dtype=np.int64) if stats is None else stats, np.empty(len(buffer)),
             np.empty(ctx.model.dof), np.empty(ctx.model.dof))
