@@ -4,16 +4,18 @@ Timings of separate processes on a shared VM differ by up to 40 % for the same c
 of a few percent cannot be seen by comparing two benchmark runs. Here both versions run in the
 same process, problem by problem and in alternating order, each query followed by its own
 certification as in ``prehensile bench mbm`` (certification evicts the caches the next query
-starts from). The older version is exported with ``git archive`` and imported as the package
-``prehensile_rev``. Reported per version: the median over problems of each problem's fastest
-planning time (search + simplification, as the benchmark reports it) and the median per-problem
-ratio, on the problems around the median; and whether both versions spent the same clearance
-evaluations (the same search) on every problem.
+starts from). Both versions are exported to a temporary folder and imported as the packages
+``prehensile_rev`` (``git archive``) and ``prehensile_now`` (the working tree). Reported: per
+version the median over problems of each problem's fastest planning time (search +
+simplification, as the benchmark reports it) and the median per-problem ratio, on the problems
+around the median; and whether both versions spent the same clearance evaluations (the same
+search) on every problem.
 
     NUMBA_NUM_THREADS=1 taskset -c 1 python benchmarks/mbm/compare_revisions.py HEAD~1 --limit 25 --reps 15
 
-Needs ../shared (the MotionBenchMaker Panda problems). Comparing a revision with itself shows the
-method's noise: paired ratios within about 3 % of 1.
+Needs ../shared (the MotionBenchMaker Panda problems). Compare the revision with itself first: on
+the 2-core VM of the README the same code gave paired ratios from 0.960 to 1.027 (five runs), so
+one run does not resolve differences under about 4 % (separate benchmark runs: about 40 %).
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ import argparse
 import importlib
 import io
 import re
+import shutil
 import subprocess
 import sys
 import tarfile
@@ -35,19 +38,21 @@ ROOT = Path(__file__).resolve().parents[2]
 MBM = ROOT.parent / "shared" / "bench" / "mbm" / "panda"
 
 
-def export_revision(revision: str, folder: Path) -> str:
-    """Write src/prehensile at ``revision`` to folder/prehensile_rev, imports renamed; returns the package name."""
-    archive = subprocess.run(["git", "-C", str(ROOT), "archive", revision, "src/prehensile"], check=True,
-                             capture_output=True).stdout
-    with tarfile.open(fileobj=io.BytesIO(archive)) as tar:
-        tar.extractall(folder, filter="data")
-    package = folder / "prehensile_rev"
-    (folder / "src" / "prehensile").rename(package)
-    for path in package.rglob("*.py"):
-        text = path.read_text()
-        path.write_text(re.sub(r"\bprehensile(?=\.[a-z_]| import)", "prehensile_rev", text))
-    sys.path.insert(0, str(folder))
-    return "prehensile_rev"
+def export(revision: str | None, package: str, folder: Path) -> str:
+    """Write src/prehensile at ``revision`` (None: the working tree) to folder/package, its imports
+    renamed; returns the package name. Both versions are exported alike, so that neither is
+    favoured by where it lives or by numba's cache."""
+    if revision is None:
+        shutil.copytree(ROOT / "src" / "prehensile", folder / package, ignore=shutil.ignore_patterns("__pycache__"))
+    else:
+        archive = subprocess.run(["git", "-C", str(ROOT), "archive", revision, "src/prehensile"], check=True,
+                                 capture_output=True).stdout
+        with tarfile.open(fileobj=io.BytesIO(archive)) as tar:
+            tar.extractall(folder / "archive", filter="data")
+        (folder / "archive" / "src" / "prehensile").rename(folder / package)
+    for path in (folder / package).rglob("*.py"):
+        path.write_text(re.sub(r"\bprehensile(?=\.[a-z_]| import)", package, path.read_text()))
+    return package
 
 
 def query_runner(package: str, limit: int):
@@ -80,8 +85,9 @@ def main() -> None:
     if not MBM.is_dir():
         sys.exit(f"compare_revisions: {MBM} not found (the MotionBenchMaker problems of ../shared)")
     with tempfile.TemporaryDirectory() as folder:
-        versions = [query_runner(export_revision(args.revision, Path(folder)), args.limit),
-                    query_runner("prehensile", args.limit)]
+        sys.path.insert(0, folder)
+        versions = [query_runner(export(args.revision, "prehensile_rev", Path(folder)), args.limit),
+                    query_runner(export(None, "prehensile_now", Path(folder)), args.limit)]
         count = versions[0][1]
         first = np.array([[versions[v][0](i) for v in (0, 1)] for i in range(count)])  # (problems, 2, 2), warms up
         same = np.mean(first[:, 0, 1] == first[:, 1, 1])
