@@ -282,8 +282,9 @@ def test_search_resumes_its_trees_and_takes_goals_added_later(arm):
     for budget in (0.0, -1.0, float("nan"), "1"):
         with pytest.raises(PrehensileError, match="solve: time_budget_s must be a positive number"):
             search.solve(budget)
-    with pytest.raises(PrehensileError, match="RRTConnectSettings: invalid values"):  # not later, in solve
-        RRTConnectSettings(time_budget_s=float("inf"))
+    for bad in (dict(time_budget_s=float("inf")), dict(shortcut_min_gain=1.0)):
+        with pytest.raises(PrehensileError, match="RRTConnectSettings: invalid values"):  # not later, in solve
+            RRTConnectSettings(**bad)
     result = search.solve(2.0)
     assert result.goal_index == 1  # rows count over every goal added
     _check_result(ctx, result, start, reachable)
@@ -471,7 +472,8 @@ def test_shortcut_never_lengthens_nor_invalidates(arm):
         np.testing.assert_array_equal(short[-1], goal)
         assert ctx.space.path_length(short) <= length + 1e-9
         assert all(ctx.check_motion(a, b) for a, b in zip(short[:-1], short[1:]))
-    for bad in (dict(iterations=-1), dict(iterations=2.5), dict(time_budget_s=-1.0), dict(time_budget_s=float("nan"))):
+    for bad in (dict(iterations=-1), dict(iterations=2.5), dict(time_budget_s=-1.0), dict(time_budget_s=float("nan")),
+                dict(min_gain=-0.1), dict(min_gain=1.0)):
         with pytest.raises(PrehensileError, match="shortcut: iterations must be a count >= 0"):
             shortcut(ctx, detour, 0, **bad)
     with pytest.raises(PrehensileError, match=r"shortcut: the input path must be valid; its edge 1 .* hits an obstacle"):
@@ -495,7 +497,7 @@ def test_shortcut_never_lengthens_nor_invalidates(arm):
         buffer[:n] = path[:n]
         marks = waypoint_marks(len(buffer))
         marks[0][:n], marks[2][:len(memo)] = ids[:n], remembered
-        m = shortcut_rows(ctx, buffer, n, marks, np.random.default_rng(1), 4, 0.05, ctx.resolution, spent,
+        m = shortcut_rows(ctx, buffer, n, marks, np.random.default_rng(1), 4, 0.0, 0.05, ctx.resolution, spent,
                           prune_first=False)
         handed.append((buffer[:m], spent[0]))
     np.testing.assert_array_equal(handed[0][0], handed[1][0])

@@ -52,7 +52,7 @@ from prehensile.planning.kernels import (
 )
 from prehensile.planning.result import PlanResult, PlanStats, PlanStatus
 from prehensile.planning.seeding import planner_rng
-from prehensile.planning.shortcut import prune, shortcut_rows, waypoint_marks
+from prehensile.planning.shortcut import MIN_GAIN, prune, shortcut_rows, waypoint_marks
 
 RUNNING, FOUND, FULL = 0, 1, 2  # kernel results
 _TRAPPED, _ADVANCED, _REACHED, _NO_ROOM = 0, 1, 2, 3  # extension results
@@ -82,6 +82,9 @@ class RRTConnectSettings:
         shortcut: simplify the path (:func:`~prehensile.planning.shortcut.shortcut`).
         shortcut_iterations: random shortcut attempts.
         shortcut_time_s: time limit (s) of the random shortcut attempts.
+        shortcut_min_gain: a random shortcut is checked only if it shortens the path by more
+            than this fraction of its length (:data:`~prehensile.planning.shortcut.MIN_GAIN`
+            has the trade-off measured on MotionBenchMaker; 0 checks every one).
         certify: certify the path on the exact geometry before returning SUCCESS.
         certify_retries: searches repeated after a path failed certification (with covering
             balls on the links that collided, the last one on every link; else at half the
@@ -103,6 +106,7 @@ class RRTConnectSettings:
     shortcut: bool = True
     shortcut_iterations: int = 16
     shortcut_time_s: float = 0.05
+    shortcut_min_gain: float = MIN_GAIN
     certify: bool = True
     certify_retries: int = 3
     escape: bool = True
@@ -110,7 +114,7 @@ class RRTConnectSettings:
     def __post_init__(self) -> None:
         if not (0 < self.time_budget_s < np.inf and self.step > 0 and self.eager_checks >= 1 and self.max_nodes >= 2
                 and self.shortcut_iterations >= 0
-                and self.shortcut_time_s >= 0 and self.certify_retries >= 0):
+                and self.shortcut_time_s >= 0 and 0 <= self.shortcut_min_gain < 1 and self.certify_retries >= 0):
             raise PrehensileError(f"RRTConnectSettings: invalid values {self}")
 
 
@@ -556,7 +560,8 @@ class RRTConnectSearch:
             if settings.shortcut and n >= 3:  # in place: the search pruned the path already
                 begun = clock()
                 n = shortcut_rows(self.context, trees.path, n, trees.marks, self.rng, settings.shortcut_iterations,
-                                  settings.shortcut_time_s, self.res, checks, prune_first=False)
+                                  settings.shortcut_min_gain, settings.shortcut_time_s, self.res, checks,
+                                  prune_first=False)
                 totals["simplify_time_s"] += clock() - begun
             path, space = trees.path[:n].copy(), self.context.space
             info = {"attempts": attempt + 1, "length": path_length(path, space.indices, space.weights),
