@@ -60,7 +60,8 @@ class PlanResult:
         stats: :class:`PlanStats`.
         goal_index: which goal of a goal set was reached: the row of the goal configurations
             (:func:`~prehensile.planning.rrt_connect.rrt_connect`) or the target pose (J+-RRT,
-            IK-RRT); -1 if none, or the goal is a pair of poses (see ``info``).
+            IK-RRT); for two hands the pair of poses as one index in C order (see ``info``);
+            -1 if none.
         end_effector: the hand that grasps (Multi-EEF planners), "" otherwise.
         info: planner-specific extras (e.g. the grasp pair of a bimanual plan); a failure that
             an unusable start or goal explains has ``reason``, e.g. "start: joint j2 = 3.1
