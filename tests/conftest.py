@@ -1,13 +1,18 @@
-"""Shared test fixtures: where the optional ../shared material and example-robot-data live."""
+"""Shared test fixtures: where the optional ../shared material and example-robot-data live.
+
+The shared material is ``../shared`` beside the repository, or wherever ``PREHENSILE_SHARED``
+points (a clone elsewhere can still run the tests that need it).
+"""
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import pytest
 
 REPO = Path(__file__).resolve().parents[1]
-SHARED = REPO.parent / "shared"
+SHARED = Path(os.environ.get("PREHENSILE_SHARED", REPO.parent / "shared"))
 MBM = SHARED / "bench" / "mbm"
 WEDGE = REPO / "tests" / "data" / "scenes" / "wedge.obj"  # tetrahedron: x, y, z >= 0, x + y + z <= 0.1 (m)
 
@@ -15,7 +20,7 @@ WEDGE = REPO / "tests" / "data" / "scenes" / "wedge.obj"  # tetrahedron: x, y, z
 def require_shared(path: Path = SHARED) -> Path:
     """Skip the calling test cleanly when the ../shared material is not there."""
     if not path.exists():
-        pytest.skip(f"{path} not present (only developer machines have ../shared)")
+        pytest.skip(f"{path} not present (only developer machines have ../shared; PREHENSILE_SHARED moves it)")
     return path
 
 

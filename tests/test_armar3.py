@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from conftest import SHARED
 from prehensile.collision import ExactChecker
 from prehensile.kinematics.forward import forward_kinematics
 from prehensile.model import Box, load_urdf
@@ -17,7 +18,7 @@ from prehensile.model.simox import load_simox
 ROOT = Path(__file__).resolve().parents[1]
 BUNDLED = ROOT / "src" / "prehensile" / "robots" / "armar3"
 URDF, SRDF = BUNDLED / "armar3.urdf", BUNDLED / "armar3.srdf"
-SIMOX = ROOT.parent / "shared" / "assets" / "armar3-simox"
+SIMOX = SHARED / "assets" / "armar3-simox"
 MIMIC = {f"{f}_{s}_J1": f"{f}_{s}_J0" for f in ("Ring", "Pinky") for s in "LR"}
 
 

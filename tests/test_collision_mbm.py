@@ -13,13 +13,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from conftest import SHARED
 from prehensile.collision.exact import ExactChecker
 from prehensile.collision.sphere_checker import SphereChecker
 from prehensile.collision.spheres import generate_sphere_model, pad_sphere_model, spheres_from_urdf
 from prehensile.collision.world import Obstacle
 from prehensile.model import load_urdf
 
-MBM = Path(__file__).resolve().parents[2] / "shared" / "bench" / "mbm" / "panda"
+MBM = SHARED / "bench" / "mbm" / "panda"
 ARCHIVE = MBM / "problems.tar.bz2"
 SCENARIOS = ("table_pick_panda", "box_panda", "bookshelf_small_panda", "cage_panda")
 SCENES_PER_SCENARIO = 2

@@ -4,12 +4,11 @@ sphere checker's clearance is the exact ball-to-obstacle distance."""
 from __future__ import annotations
 
 import logging
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-from conftest import WEDGE, part_urdf
+from conftest import SHARED, WEDGE, part_urdf
 from prehensile.collision import spheres as spheres_module
 from prehensile.collision.acm import rigid_bodies
 from prehensile.collision.exact import ExactChecker
@@ -27,7 +26,7 @@ from prehensile.model.geometry import Box, Capsule, Cylinder, Geometry, Mesh, Sp
 from prehensile.robots import load_path
 from prehensile.spatial import make_pose, rpy_to_matrix
 
-MBM = Path(__file__).resolve().parents[2] / "shared" / "bench" / "mbm" / "panda"
+MBM = SHARED / "bench" / "mbm" / "panda"
 needs_mbm = pytest.mark.skipif(not (MBM / "panda.urdf").is_file(), reason="MBM Panda files not found")
 
 

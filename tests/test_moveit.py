@@ -11,13 +11,14 @@ import pytest
 import yaml
 from scipy.spatial.transform import Rotation
 
+from conftest import SHARED
 from prehensile.errors import SceneError
 from prehensile.model import load_urdf
 from prehensile.model.geometry import Box, Cylinder, Sphere
 from prehensile.scene import iter_mbm_problems, load_motion_plan_request, load_moveit_scene, load_scene, save_scene
 from prehensile.scene.moveit import motion_plan_request_from_dict, moveit_scene_from_dict
 
-MBM = Path(__file__).resolve().parents[1].parent / "shared" / "bench" / "mbm" / "panda"
+MBM = SHARED / "bench" / "mbm" / "panda"
 TARBALL = MBM / "problems.tar.bz2"
 needs_mbm = pytest.mark.skipif(not TARBALL.is_file(), reason=f"MBM problems not found at {TARBALL}")
 

@@ -7,13 +7,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from conftest import SHARED
 from prehensile.errors import ModelError
 from prehensile.kinematics.forward import forward_kinematics
 from prehensile.model.simox import load_simox
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT / "tests" / "data" / "simox"
-ARMAR3 = ROOT.parent / "shared" / "assets" / "armar3-simox"
+ARMAR3 = SHARED / "assets" / "armar3-simox"
 
 
 def _armar3(name: str):
