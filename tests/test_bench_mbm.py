@@ -286,8 +286,10 @@ def test_settings_name_valid_choices():
     with pytest.raises(PrehensileError, match="valid: rrt_connect"):
         MBMSettings(planner="prm")
     for budget in (0, float("inf"), float("nan")):
-        with pytest.raises(PrehensileError, match="budget: must be a positive number"):
+        with pytest.raises(PrehensileError, match="MBMSettings.time_budget_s must be > 0 and finite"):
             MBMSettings(time_budget_s=budget)
+    with pytest.raises(PrehensileError, match="MBMSettings.limit must be >= 0, got -1"):
+        MBMSettings(limit=-1)
 
 
 def test_summaries():

@@ -102,14 +102,25 @@ def test_fk_bundled_one_link_neutral_and_negative_values():
     (("fk", URDF, "--q", "0.1", "abc"), "expected numbers"),
     (("fk", URDF, "--link", "nope"), "has no link 'nope'"),
     (("robot", "info", "r2d2"), "r2d2"),
+    (("fk", URDF, "0.1", "0.2"), "unexpected arguments 0.1 0.2; give joint values after --q"),
+    (("fk", URDF, "--q", "0.1", "-0.2", "--bogus", "1"), "no such option: --bogus (see --help)"),
+    (("robot", "info", "r2d2"), "r2d2"),
+    (("robot", "info", DATA), "is a directory, not a file"),
     (("check", DATA / "missing.yaml"), "scene file not found"),
+    (("check", DATA), "is a directory, not a scene file"),
+    (("plan", "plan_demo", "--bogus-option", "3"), "no such option: --bogus-option"),
+    (("plan", "plan_demo", "--seed", "-1"), "--seed: must be >= 0, got -1"),
+    (("ik", "panda", "--chain", "arm", "--target", "0.3", "0", "0.5", "--bogus"), "no such option: --bogus"),
+    (("bench", "mbm", DATA, "--robot", "panda"), "no MoveIt problems found"),
+    (("bench", "mbm", DATA, "--robot", "panda", "--limit", "-1"), "--limit: must be >= 0"),
+    (("bench", "mbm", DATA, "--robot", "panda", "--srdf", DATA), "--srdf " + str(DATA) + ": is a directory"),
 ])
 def test_bad_input_is_one_red_line_with_exit_code_2(args, fragment):
     result = _run(*args)
     assert result.exit_code == 2
     assert fragment in result.output
     assert "Traceback" not in result.output
-    assert len(result.output.strip().splitlines()) == 1
+    assert len(result.output.splitlines()) == 1  # not even a blank line before it
 
 
 def test_check_exit_codes():

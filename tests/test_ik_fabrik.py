@@ -202,9 +202,9 @@ def test_bad_input():
         fabrik(model, "left_arm", [0.1, 0.1, 0.1], q_seed=np.full(model.dof, np.nan))
     with pytest.raises(PrehensileError, match="no chain"):
         fabrik(model, "tail", [0.1, 0.1, 0.1])
-    with pytest.raises(PrehensileError):
+    with pytest.raises(PrehensileError, match="FabrikSettings.tolerance must be > 0, got 0.0"):
         FabrikSettings(tolerance=0.0)
-    with pytest.raises(PrehensileError):
+    with pytest.raises(PrehensileError, match="FabrikSettings.max_iterations must be >= 1, got 0"):
         FabrikSettings(max_iterations=0)
 
 

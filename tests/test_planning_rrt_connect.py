@@ -282,8 +282,10 @@ def test_search_resumes_its_trees_and_takes_goals_added_later(arm):
     for budget in (0.0, -1.0, float("nan"), "1"):
         with pytest.raises(PrehensileError, match="solve: time_budget_s must be a positive number"):
             search.solve(budget)
-    for bad in (dict(time_budget_s=float("inf")), dict(shortcut_min_gain=1.0)):
-        with pytest.raises(PrehensileError, match="RRTConnectSettings: invalid values"):  # not later, in solve
+    for bad, message in ((dict(time_budget_s=float("inf")), "time_budget_s must be > 0 and finite, got inf"),
+                         (dict(shortcut_min_gain=1.0), r"shortcut_min_gain must be in \[0, 1\), got 1.0"),
+                         (dict(eager_checks="3"), "eager_checks must be >= 1, got '3'")):
+        with pytest.raises(PrehensileError, match=f"RRTConnectSettings.{message}"):  # not later, in solve
             RRTConnectSettings(**bad)
     result = search.solve(2.0)
     assert result.goal_index == 1  # rows count over every goal added

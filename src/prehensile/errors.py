@@ -3,6 +3,8 @@
 "No solution" is never an exception: solvers and planners return a status.
 """
 
+from pathlib import Path
+
 
 class PrehensileError(Exception):
     """Root of every error raised by prehensile."""
@@ -21,3 +23,8 @@ class UnknownFrameError(PrehensileError, KeyError):
 
     def __str__(self) -> str:  # KeyError would quote the message
         return str(self.args[0]) if self.args else ""
+
+
+def missing_file(path: str | Path, what: str = "file") -> str:
+    """Why ``path``, which is not a file, cannot be read: for messages "PATH: <reason>"."""
+    return f"is a directory, not a {what}" if Path(path).is_dir() else f"{what} not found"

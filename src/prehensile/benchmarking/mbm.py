@@ -41,6 +41,7 @@ from prehensile.collision.spheres import SphereModel, generate_sphere_model, pad
 from prehensile.errors import PrehensileError
 from prehensile.model.robot_model import RobotModel
 from prehensile.scene.moveit import MBMProblem, iter_mbm_problems
+from prehensile.settings import FINITE_POSITIVE, POSITIVE, at_least, check_fields
 
 log = logging.getLogger(__name__)
 
@@ -75,13 +76,8 @@ class MBMSettings:
     def __post_init__(self) -> None:
         if self.planner not in PLANNERS:
             raise PrehensileError(f"planner '{self.planner}' is not available; valid: {', '.join(PLANNERS)}")
-        if not 0 < self.time_budget_s < np.inf:
-            raise PrehensileError(f"budget: must be a positive number (s), got {self.time_budget_s}")
-        if self.limit < 0:
-            raise PrehensileError(f"limit: must be >= 0 (0 = all problems), got {self.limit}")
-        for name in ("resolution", "certify_resolution", "verify_resolution"):
-            if not getattr(self, name) > 0:
-                raise PrehensileError(f"{name}: must be positive (m), got {getattr(self, name)}")
+        check_fields(self, time_budget_s=FINITE_POSITIVE, seed=at_least(0), limit=at_least(0),
+                     **dict.fromkeys(("resolution", "certify_resolution", "verify_resolution"), POSITIVE))
 
 
 def benchmark_spheres(model: RobotModel, spherized_urdf: str | Path | None, pad: bool = False,
@@ -321,7 +317,7 @@ def _ratios(runs: Sequence[dict], ours: dict, ompl: dict) -> dict:
 
 def run_mbm(problems_path: str | Path, model: RobotModel, spheres: tuple[SphereModel, SphereModel | None],
             settings: MBMSettings = MBMSettings(),
-            progress: Callable[[int, int, dict], None] | None = None) -> dict:
+            progress: Callable[[int, int, dict | None], None] | None = None) -> dict:
     """Run the benchmark; returns the JSON-ready report.
 
     Args:
@@ -329,7 +325,8 @@ def run_mbm(problems_path: str | Path, model: RobotModel, spheres: tuple[SphereM
         model: the robot (with its SRDF for groups and disabled collision pairs).
         spheres: planning balls and covering balls (see :func:`benchmark_spheres`).
         settings: see :class:`MBMSettings`.
-        progress: called after each problem with (done, total, per-problem record).
+        progress: called with (0, total, None) once the problems are loaded and checked, then
+            after each problem with (done, total, per-problem record).
 
     Returns:
         ``{"overall", "scenarios", "ompl", "ratios", "runs", "settings", "robot", "machine",
@@ -337,6 +334,8 @@ def run_mbm(problems_path: str | Path, model: RobotModel, spheres: tuple[SphereM
     """
     problems = load_problems(problems_path, model, settings.limit)
     check_problems(model, problems)
+    if progress is not None:
+        progress(0, len(problems), None)
     _warm_up(model, spheres, problems[0], settings)
     runs = []
     for number, problem in enumerate(problems):
@@ -371,11 +370,14 @@ def run_mbm(problems_path: str | Path, model: RobotModel, spheres: tuple[SphereM
 
 def _warm_up(model: RobotModel, spheres: tuple[SphereModel, SphereModel | None], problem: MBMProblem,
              settings: MBMSettings) -> None:
-    """Compile (or load from numba's cache) every kernel on one problem before timing."""
+    """Compile (or load from numba's cache) every kernel on one problem before timing, the
+    clearance of certified escapes too (few problems need one)."""
     from prehensile.planning import RRTConnectSettings, rrt_connect
 
     start = time.perf_counter()
     prepared = PreparedProblem(model, spheres, problem, settings)
     budget = RRTConnectSettings(time_budget_s=settings.time_budget_s)
     rrt_connect(prepared.ctx, prepared.q_start, prepared.q_goal, budget)
+    prepared.ctx.spheres.is_free(prepared.q_start)
+    prepared.ctx.spheres.clearance(prepared.q_start, self_pairs=False)
     log.info("warm-up (compilation) took %.2f s", time.perf_counter() - start)

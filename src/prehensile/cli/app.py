@@ -35,6 +35,32 @@ def check_budget(budget: float) -> None:
         raise PrehensileError(f"--budget: must be a positive, finite time (s), got {budget}")
 
 
+def check_seed(seed: int) -> None:
+    """Refuse a negative ``--seed`` (numpy's generators take none)."""
+    if seed < 0:
+        raise PrehensileError(f"--seed: must be >= 0, got {seed}")
+
+
+def extra_values(args: list[str], given: list[str] | None, option: str, what: str) -> list[str]:
+    """All values of the many-valued ``option``: typer binds the first (``given``) and hands the
+    rest on as the command's extra ``args``. An extra argument that is an option, not a number,
+    is an unknown option."""
+    unknown = [a for a in args if a.startswith("-") and not _is_number(a)]
+    if unknown:
+        raise PrehensileError(f"no such option: {unknown[0]} (see --help)")
+    if args and not given:
+        raise PrehensileError(f"unexpected arguments {' '.join(args)}; give {what} after {option}")
+    return list(given or []) + list(args)
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
 def check_ball_radius(ball_radius: float | None) -> None:
     """Refuse a ``--ball-radius`` that is not a positive length."""
     if ball_radius is not None and not ball_radius > 0:

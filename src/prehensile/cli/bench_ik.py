@@ -11,7 +11,7 @@ import typer
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
-from prehensile.cli.app import bench_app, console, err_console, handles_errors
+from prehensile.cli.app import bench_app, check_seed, console, err_console, handles_errors
 
 
 def split_names(values: List[str] | None) -> tuple[str, ...]:
@@ -31,7 +31,7 @@ def bench_ik(
                                                help="Our solvers, repeatable or comma list: "
                                                "dls, pinv, transpose, fabrik (position only), analytic (NAO arms). "
                                                "Default: dls."),
-    seed: int = typer.Option(0, "--seed", min=0, help="Seed of the targets and the restarts."),
+    seed: int = typer.Option(0, "--seed", help="Seed of the targets and the restarts."),
     budget: float = typer.Option(0.005, "--budget", help="Time budget per target (s)."),
     peers: List[str] = typer.Option(["pinocchio,ikpy"], "--peers", help="Peers, comma list: pinocchio, ikpy "
                                     "(or none)."),
@@ -48,6 +48,7 @@ def bench_ik(
     from prehensile.benchmarking.ik import IKBenchSettings, run_ik_bench
     from prehensile.storage import atomic_write_json, check_writable
 
+    check_seed(seed)
     if json_out is not None:
         check_writable(json_out, "--json")
     settings = IKBenchSettings(n=n, methods=split_names(method) or ("dls",), peers=split_names(peers), seed=seed,

@@ -11,9 +11,9 @@ from rich.markup import escape
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Column, Table
 
-from prehensile.cli.app import (BALL_RADIUS_OPTION, SRDF_OPTION, bench_app, check_ball_radius, check_budget, console,
-                                err_console, handles_errors)
-from prehensile.errors import PrehensileError
+from prehensile.cli.app import (BALL_RADIUS_OPTION, SRDF_OPTION, bench_app, check_ball_radius, check_budget,
+                                check_seed, console, err_console, handles_errors)
+from prehensile.errors import PrehensileError, missing_file
 
 
 @bench_app.command("mbm")
@@ -29,10 +29,10 @@ def bench_mbm(
                              "links that collided padded to cover the meshes; --pad: plan on padded balls only."),
     ball_radius: Optional[float] = BALL_RADIUS_OPTION,
     srdf: Optional[Path] = SRDF_OPTION,
-    planner: str = typer.Option("rrt_connect", "--planner", help="Our planner."),
+    planner: str = typer.Option("rrt_connect", "--planner", help="Our planner: rrt_connect (the only one yet)."),
     compare_ompl: bool = typer.Option(False, "--compare-ompl", help="Also run OMPL's RRT-Connect on every problem."),
     budget: float = typer.Option(1.0, "--budget", help="Search time limit per problem and planner (s)."),
-    seed: int = typer.Option(0, "--seed", min=0, help="Random seed."),
+    seed: int = typer.Option(0, "--seed", help="Random seed."),
     limit: int = typer.Option(0, "--limit", help="At most N problems per scenario (0: all)."),
     json_out: Optional[Path] = typer.Option(None, "--json", help="Write the full report (JSON) to this file."),
 ) -> None:
@@ -41,31 +41,42 @@ def bench_mbm(
     Reports solved, median / p95 planning time (search + simplification), path length,
     certification time and exactly-colliding paths, per scenario and overall.
     """
-    from prehensile import robots
     from prehensile.benchmarking.mbm import MBMSettings, benchmark_spheres, run_mbm
+    from prehensile.cli.robot import load_robot
     from prehensile.storage import atomic_write_json, check_writable
 
     check_budget(budget)
+    check_seed(seed)
+    if limit < 0:
+        raise PrehensileError(f"--limit: must be >= 0 (0: all problems), got {limit}")
     settings = MBMSettings(planner=planner, time_budget_s=budget, seed=seed, limit=limit, compare_ompl=compare_ompl)
     if json_out is not None:
         check_writable(json_out, "--json")
     if not problems.exists():
         raise PrehensileError(f"{problems}: no such folder or archive of MoveIt problems")
     if spheres is not None and not spheres.is_file():
-        raise PrehensileError(f"--spheres {spheres}: file not found")
+        raise PrehensileError(f"--spheres {spheres}: {missing_file(spheres)}")
     check_ball_radius(ball_radius)
     if spheres is not None and ball_radius is not None:
         raise PrehensileError("--ball-radius sizes generated balls: give it or --spheres, not both")
-    model = robots.load(robot, srdf)
+    model = load_robot(robot, srdf)
     sphere_model = benchmark_spheres(model, spheres, pad, ball_radius)
-    with Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
-                  console=err_console, transient=True) as bar:
-        task = bar.add_task("planning", total=None)
+    # shown once the problems have loaded: an error before leaves stderr with its one line
+    bar = Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
+                   console=err_console, transient=True)
+    task = bar.add_task("compiling", total=None)
 
-        def progress(done: int, total: int, run: dict) -> None:
-            bar.update(task, completed=done, total=total, description=f"{run['scenario']} {run['index']:04d}")
+    def progress(done: int, total: int, run: dict | None) -> None:
+        if run is None:
+            bar.start()
+        bar.update(task, completed=done, total=total,
+                   description="compiling" if run is None else f"{run['scenario']} {run['index']:04d}")
 
+    try:
         report = run_mbm(problems, model, sphere_model, settings, progress)
+    finally:
+        if bar.live.is_started:
+            bar.stop()
     options = {"--robot": robot, "--srdf": srdf, "--spheres": spheres, "--ball-radius": ball_radius,
                "--planner": planner, "--budget": budget, "--seed": seed, "--limit": limit, "--json": json_out}
     words = ["prehensile", "bench", "mbm", str(problems)] + ["--compare-ompl"] * compare_ompl + ["--pad"] * pad

@@ -12,7 +12,8 @@ import numpy as np
 import typer
 from rich.table import Table
 
-from prehensile.cli.app import SRDF_OPTION, app, check_budget, console, echo_json, handles_errors
+from prehensile.cli.app import (SRDF_OPTION, app, check_budget, check_seed, console, echo_json, extra_values,
+                                handles_errors)
 from prehensile.errors import PrehensileError
 from prehensile.ik import METHODS as JACOBIAN_METHODS
 from prehensile.ik import ChainSolver, CompleteIKSettings, JacobianIKSettings, solve_ik_complete
@@ -109,7 +110,7 @@ def ik(
                                                help="x y z (m): position only; x y z roll pitch "
                                                "yaw (m, rad): full pose of the chain's tip in the robot's root."),
     method: str = typer.Option("dls", "--method", help=f"One of {', '.join(METHODS)}."),
-    seed: int = typer.Option(0, "--seed", min=0, help="Seed of the random restarts."),
+    seed: int = typer.Option(0, "--seed", help="Seed of the random restarts."),
     budget: float = typer.Option(0.1, "--budget", help="Time budget (s) of the Jacobian methods."),
     as_json: bool = typer.Option(False, "--json", help="Print JSON instead of tables."),
 ) -> None:
@@ -118,11 +119,10 @@ def ik(
     Jacobian methods restart from random configurations within the budget. Exit code 0 when
     solved, 1 when not, 2 on bad input, 3 on a bug.
     """
-    if ctx.args and not target:
-        raise PrehensileError(f"unexpected arguments {' '.join(ctx.args)}; give the target after --target")
     from prehensile.cli.robot import load_robot
 
-    goal = parse_target(list(target or []) + list(ctx.args))
+    check_seed(seed)
+    goal = parse_target(extra_values(ctx.args, target, "--target", "the target"))
     model = load_robot(robot, srdf)
     result = solve_query(model, chain, goal, method, seed, budget)
     data = report(model, chain, method, goal, result)

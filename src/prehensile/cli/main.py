@@ -21,8 +21,8 @@ import typer
 from rich.table import Table
 
 from prehensile.cli import robot as robot_cmd
-from prehensile.cli.app import EXIT_COLLIDING, EXIT_FREE, SRDF_OPTION, app, console, echo_json, handles_errors
-from prehensile.errors import PrehensileError
+from prehensile.cli.app import (EXIT_COLLIDING, EXIT_FREE, SRDF_OPTION, app, console, echo_json, extra_values,
+                                handles_errors)
 
 robot_app = typer.Typer(help="Inspect robot models.", no_args_is_help=True)
 app.add_typer(robot_app, name="robot")
@@ -95,9 +95,7 @@ def fk(
     as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table."),
 ) -> None:
     """Forward kinematics: world poses of the links with the base at the origin."""
-    values = list(q or []) + list(ctx.args)
-    if ctx.args and not q:
-        raise PrehensileError(f"unexpected arguments {' '.join(ctx.args)}; give joint values after --q")
+    values = extra_values(ctx.args, q, "--q", "joint values")
     model = robot_cmd.load_robot(robot)
     result = robot_cmd.link_poses(model, robot_cmd.parse_q(model, values), link)
     if as_json:

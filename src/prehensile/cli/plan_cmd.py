@@ -30,8 +30,9 @@ from typing import List, Optional
 import numpy as np
 import typer
 
-from prehensile.cli.app import BALL_RADIUS_OPTION, app, check_ball_radius, check_budget, console, handles_errors
-from prehensile.errors import PrehensileError, SceneError
+from prehensile.cli.app import (BALL_RADIUS_OPTION, app, check_ball_radius, check_budget, check_seed, console,
+                                extra_values, handles_errors)
+from prehensile.errors import PrehensileError, SceneError, missing_file
 from prehensile.scene.scene import PlacedRobot, Scene
 
 EXIT_NO_PATH = 1
@@ -49,7 +50,7 @@ def scene_path(scene: str) -> Path:
         return path
     if scene in bundled_scenes():
         return bundled_scene_path(scene)
-    raise SceneError(f"{scene}: scene file not found; bundled scenes: {', '.join(bundled_scenes())}")
+    raise SceneError(f"{scene}: {missing_file(scene, 'scene file')}; bundled scenes: {', '.join(bundled_scenes())}")
 
 
 def choose_robot(scene: Scene, name: str | None, goals: dict) -> PlacedRobot:
@@ -232,7 +233,7 @@ def plan(
                                           "or, to a --target pose, ik_rrt (the default) or jplus_rrt."),
     budget: float = typer.Option(1.0, "--budget", help="Search time limit (s)."),
     ball_radius: Optional[float] = BALL_RADIUS_OPTION,
-    seed: int = typer.Option(0, "--seed", min=0, help="Random seed."),
+    seed: int = typer.Option(0, "--seed", help="Random seed."),
     out: Path = typer.Option(Path("prehensile-plan"), "--out", help="Folder for path.json, trajectory.json, plan.png."),
 ) -> None:
     """Plan from the robot's scene configuration to a goal configuration or tool pose.
@@ -248,8 +249,7 @@ def plan(
 
     if goal and target:
         raise PrehensileError("give either --goal (a configuration) or --target (a tool pose), not both")
-    if ctx.args and not (goal or target):
-        raise PrehensileError(f"unexpected arguments {' '.join(ctx.args)}; give goal values after --goal")
+    values = extra_values(ctx.args, goal or target, "--goal", "goal values")
     planner = planner or (POSE_PLANNERS[0] if target else CONFIGURATION_PLANNERS[0])
     if planner not in PLANNERS:
         raise PrehensileError(f"--planner: unknown planner '{planner}'; valid: {', '.join(PLANNERS)}")
@@ -260,6 +260,7 @@ def plan(
     if target and chain is None:
         raise PrehensileError("--target: give --chain, the chain whose tip goes to the pose")
     check_budget(budget)
+    check_seed(seed)
     check_ball_radius(ball_radius)
     check_writable(out, "--out", folder=True)
     path = scene_path(scene)
@@ -274,11 +275,11 @@ def plan(
         joints = list(scene_goal)
     else:
         joints = list(model.joint_names)
-    pose = parse_target(list(target) + list(ctx.args)) if target else None
+    pose = parse_target(values) if target else None
     if pose is not None and pose.shape == (3,) and planner == "jplus_rrt":
         raise PrehensileError("--planner jplus_rrt steps toward a full pose: give --target x y z roll pitch yaw, "
                               "or plan to a position with ik_rrt")
-    q_goal = None if target else goal_configuration(placed, joints, list(goal or []) + list(ctx.args), scene_goal)
+    q_goal = None if target else goal_configuration(placed, joints, values, scene_goal)
     q_start = placed.configuration
     obstacles = loaded.collision_obstacles() + [o for r in loaded.robots if r.name != placed.name
                                                 for o in robot_obstacles(r)]

@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from prehensile.errors import PrehensileError
+from prehensile.errors import PrehensileError, missing_file
 from prehensile.kinematics import forward_kinematics
 from prehensile.model.robot_model import PRISMATIC, RobotModel
 from prehensile.spatial import matrix_to_rpy
@@ -19,6 +19,8 @@ def load_robot(name_or_path: str, srdf: Path | None = None) -> RobotModel:
     ``prehensile.robots.load``)."""
     from prehensile import robots
 
+    if srdf is not None and not srdf.is_file():
+        raise PrehensileError(f"--srdf {srdf}: {missing_file(srdf)}")
     return robots.load(name_or_path, srdf)
 
 

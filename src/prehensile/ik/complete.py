@@ -26,9 +26,9 @@ from typing import Callable
 import numpy as np
 
 from prehensile.clock import clock
-from prehensile.errors import PrehensileError
 from prehensile.ik.jacobian import ChainSolver
 from prehensile.ik.result import IKResult, IKStatus
+from prehensile.settings import POSITIVE, at_least, check_fields, or_none
 from prehensile.spatial.transforms import rotation_error
 
 
@@ -47,9 +47,7 @@ class CompleteIKSettings:
     max_restarts: int | None = None
 
     def __post_init__(self) -> None:
-        if not self.time_budget_s > 0 or self.batch < 1 or (self.max_restarts is not None and self.max_restarts < 0):
-            raise PrehensileError(f"CompleteIKSettings: need time_budget_s > 0, batch >= 1 and max_restarts >= 0 "
-                                  f"or None, got {self}")
+        check_fields(self, time_budget_s=POSITIVE, batch=at_least(1), max_restarts=or_none(at_least(0)))
 
 
 def solve_ik_complete(solver: ChainSolver, target: np.ndarray, q_seed: np.ndarray | None = None,

@@ -52,6 +52,7 @@ from prehensile.ik.result import IKResult, IKStatus, check_target_positions
 from prehensile.kinematics import forward_kinematics
 from prehensile.kinematics.kernels import FAST, PRISMATIC, fk_into
 from prehensile.model.robot_model import RobotModel
+from prehensile.settings import POSITIVE, at_least, check_fields
 from prehensile.spatial.transforms import check_pose
 
 CONVERGED, NOT_CONVERGED, UNREACHABLE = 0, 1, 2
@@ -78,9 +79,8 @@ class FabrikSettings:
     orientation_weight: float = 0.25
 
     def __post_init__(self) -> None:
-        for name in ("tolerance", "rotation_tolerance", "max_iterations", "stall_iterations", "orientation_weight"):
-            if not getattr(self, name) > 0:
-                raise PrehensileError(f"FabrikSettings.{name} must be positive, got {getattr(self, name)}")
+        check_fields(self, **dict.fromkeys(("tolerance", "rotation_tolerance", "orientation_weight"), POSITIVE),
+                     max_iterations=at_least(1), stall_iterations=at_least(1))
 
 
 @njit(cache=True, fastmath=FAST)

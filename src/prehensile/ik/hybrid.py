@@ -28,6 +28,7 @@ from prehensile.ik.jacobian import ChainSolver, free_joint_indices
 from prehensile.ik.reach import ReachSamples, reach_samples
 from prehensile.ik.result import IKResult, IKStatus
 from prehensile.kinematics.forward import forward_kinematics
+from prehensile.settings import POSITIVE, at_least, check_fields, or_none
 from prehensile.spatial.transforms import invert, rpy_to_matrix
 
 
@@ -47,10 +48,7 @@ class HybridIKSettings:
     max_samples: int | None = None
 
     def __post_init__(self) -> None:
-        if not (self.time_budget_s > 0 and self.arm_restarts >= 0
-                and (self.max_samples is None or self.max_samples >= 1)):
-            raise PrehensileError(f"HybridIKSettings: need time_budget_s > 0, arm_restarts >= 0 and max_samples >= 1 "
-                                  f"or None, got {self}")
+        check_fields(self, time_budget_s=POSITIVE, arm_restarts=at_least(0), max_samples=or_none(at_least(1)))
 
 
 def solve_ik_hybrid(arms: Sequence[ChainSolver], targets: Sequence[np.ndarray], free: Sequence[str] | str | None = None,

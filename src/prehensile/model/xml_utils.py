@@ -7,14 +7,14 @@ from pathlib import Path
 
 import numpy as np
 
-from prehensile.errors import ModelError
+from prehensile.errors import ModelError, missing_file
 
 
 def parse_xml(path: Path) -> ET.Element:
     """Root element of ``path``; a missing or malformed file is a ModelError naming it."""
     path = Path(path)
     if not path.is_file():
-        raise ModelError(f"{path}: file not found")
+        raise ModelError(f"{path}: {missing_file(path)}")
     try:
         return ET.parse(path).getroot()
     except ET.ParseError as err:

@@ -45,9 +45,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from prehensile.errors import PrehensileError
 from prehensile.kinematics import forward_kinematics, frame_jacobian
 from prehensile.planning.certify import check_valid_path
+from prehensile.settings import NON_NEGATIVE, POSITIVE, at_least, check_fields, or_none
 from prehensile.spatial import make_pose
 
 log = logging.getLogger(__name__)
@@ -80,12 +80,8 @@ class ElasticBandSettings:
     damping: float = 1e-2
 
     def __post_init__(self) -> None:
-        for name in ("k_int", "k_ext", "tolerance", "damping"):
-            if not getattr(self, name) >= 0:
-                raise PrehensileError(f"ElasticBandSettings.{name} must be >= 0, got {getattr(self, name)}")
-        if not self.d_min > 0 or self.max_iterations < 0 or (self.max_spacing is not None and not self.max_spacing > 0):
-            raise PrehensileError(f"ElasticBandSettings: d_min and max_spacing must be positive and max_iterations "
-                                  f">= 0, got {self}")
+        check_fields(self, **dict.fromkeys(("k_int", "k_ext", "tolerance", "damping"), NON_NEGATIVE), d_min=POSITIVE,
+                     max_iterations=at_least(0), max_spacing=or_none(POSITIVE))
 
 
 def _subdivide(ctx, path: np.ndarray, spacing: float) -> np.ndarray:

@@ -37,6 +37,7 @@ from prehensile.planning.context import PlanningContext
 from prehensile.planning.result import PlanResult, PlanStats, PlanStatus
 from prehensile.planning.rrt_connect import RRTConnectSearch, RRTConnectSettings
 from prehensile.planning.seeding import planner_rng
+from prehensile.settings import FINITE_POSITIVE, POSITIVE, at_least, check_fields
 from prehensile.spatial.transforms import invert
 
 # a goal sampler draws one goal configuration (dof,) or None, and what it reached (grasp
@@ -77,10 +78,8 @@ class IKRRTSettings:
     rrt: RRTConnectSettings = RRTConnectSettings()
 
     def __post_init__(self) -> None:
-        if not (0 < self.time_budget_s < np.inf and self.ik_budget_s > 0 and self.ik_attempts >= 1
-                and self.first_round_iterations >= 1):
-            raise PrehensileError(f"IKRRTSettings: the budgets (s), attempts and iterations must be positive, "
-                                  f"time_budget_s finite, got {self}")
+        check_fields(self, time_budget_s=FINITE_POSITIVE, ik_attempts=at_least(1), ik_budget_s=POSITIVE,
+                     first_round_iterations=at_least(1))
 
 
 class _Search:

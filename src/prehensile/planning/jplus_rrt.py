@@ -41,6 +41,8 @@ from prehensile.planning.context import PlanningContext
 from prehensile.planning.finish import finish_path
 from prehensile.planning.result import PlanResult, PlanStats, PlanStatus
 from prehensile.planning.seeding import planner_rng
+from prehensile.settings import (FINITE_POSITIVE, NON_NEGATIVE, POSITIVE, UNIT_INTERVAL, at_least,
+                                 check_fields)
 from prehensile.spatial.transforms import invert
 
 
@@ -86,14 +88,11 @@ class JPlusRRTSettings:
     exact_approach: float = 0.05
 
     def __post_init__(self) -> None:
-        positive = ("time_budget_s", "step", "max_step_position", "max_step_rotation", "position_tolerance",
-                    "rotation_tolerance", "rotation_weight", "max_goal_steps")
-        if not all(getattr(self, name) > 0 for name in positive) or not 0 <= self.goal_probability <= 1 \
-                or self.max_nodes < 2 or self.shortcut_iterations < 0 or not self.exact_approach >= 0 \
-                or self.time_budget_s == np.inf:
-            raise PrehensileError(f"JPlusRRTSettings: need {', '.join(positive)} > 0, time_budget_s finite, "
-                                  f"goal_probability in [0, 1], max_nodes >= 2, shortcut_iterations >= 0 and "
-                                  f"exact_approach >= 0; got {self}")
+        positive = ("step", "max_step_position", "max_step_rotation", "position_tolerance", "rotation_tolerance",
+                    "rotation_weight")
+        check_fields(self, time_budget_s=FINITE_POSITIVE, **dict.fromkeys(positive, POSITIVE),
+                     goal_probability=UNIT_INTERVAL, max_goal_steps=at_least(1), max_nodes=at_least(2),
+                     shortcut_iterations=at_least(0), exact_approach=NON_NEGATIVE)
 
 
 class _Tree:

@@ -53,6 +53,7 @@ from prehensile.planning.kernels import (
 from prehensile.planning.result import PlanResult, PlanStats, PlanStatus
 from prehensile.planning.seeding import planner_rng
 from prehensile.planning.shortcut import MIN_GAIN, prune, shortcut_rows, waypoint_marks
+from prehensile.settings import FINITE_POSITIVE, NON_NEGATIVE, POSITIVE, at_least, check_fields
 
 RUNNING, FOUND, FULL = 0, 1, 2  # kernel results
 _TRAPPED, _ADVANCED, _REACHED, _NO_ROOM = 0, 1, 2, 3  # extension results
@@ -112,10 +113,9 @@ class RRTConnectSettings:
     escape: bool = True
 
     def __post_init__(self) -> None:
-        if not (0 < self.time_budget_s < np.inf and self.step > 0 and self.eager_checks >= 1 and self.max_nodes >= 2
-                and self.shortcut_iterations >= 0
-                and self.shortcut_time_s >= 0 and 0 <= self.shortcut_min_gain < 1 and self.certify_retries >= 0):
-            raise PrehensileError(f"RRTConnectSettings: invalid values {self}")
+        check_fields(self, time_budget_s=FINITE_POSITIVE, step=POSITIVE, eager_checks=at_least(1),
+                     max_nodes=at_least(2), shortcut_iterations=at_least(0), shortcut_time_s=NON_NEGATIVE,
+                     shortcut_min_gain=(lambda v: 0 <= v < 1, "in [0, 1)"), certify_retries=at_least(0))
 
 
 @njit(cache=True, inline="always")

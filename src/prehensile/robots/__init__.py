@@ -20,7 +20,7 @@ from __future__ import annotations
 from functools import lru_cache
 from pathlib import Path
 
-from prehensile.errors import ModelError
+from prehensile.errors import ModelError, missing_file
 from prehensile.model.robot_model import RobotModel
 
 _HERE = Path(__file__).resolve().parent
@@ -87,7 +87,7 @@ def load_path(path: str | Path, srdf: str | Path | None = None) -> RobotModel:
     """
     path = Path(path)
     if not path.is_file():
-        raise ModelError(f"{path}: file not found")
+        raise ModelError(f"{path}: {missing_file(path)}")
     suffix = path.suffix.lower()
     if suffix not in (".urdf", ".xml"):
         raise ModelError(f"{path}: unknown robot file type '{suffix}'; valid: .urdf, .xml (MJCF or Simox)")
@@ -140,7 +140,7 @@ def load(name_or_path: str | Path, srdf: str | Path | None = None) -> RobotModel
             f"unknown robot '{name_or_path}'; valid names: {', '.join(sorted(names))} "
             "(a path to a .urdf or MJCF/Simox .xml file is accepted too)"
         )
-    raise ModelError(f"{path}: file not found (give a bundled robot name: {', '.join(sorted(names))}, or a path)")
+    raise ModelError(f"{path}: {missing_file(path)} (give a bundled robot name: {', '.join(sorted(names))}, or a path)")
 
 
 __all__ = ["available", "load", "load_path"]

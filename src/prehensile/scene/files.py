@@ -38,7 +38,7 @@ from typing import Any, Mapping
 import numpy as np
 import yaml
 
-from prehensile.errors import PrehensileError, SceneError
+from prehensile.errors import PrehensileError, SceneError, missing_file
 from prehensile.model.robot_model import RobotModel
 from prehensile.scene.scene import Body, PlacedRobot, Scene
 from prehensile.storage import atomic_write_text
@@ -67,7 +67,7 @@ def load_scene(path: str | os.PathLike) -> Scene:
     """
     path = Path(path)
     if not path.is_file():
-        raise SceneError(f"{path}: scene file not found")
+        raise SceneError(f"{path}: {missing_file(path, 'scene file')}")
     try:
         with path.open(encoding="utf-8") as stream:  # yaml's messages then name the file
             data = yaml.load(stream, Loader=YamlLoader)
@@ -166,7 +166,7 @@ def load_robot_reference(reference: str, base_dir: Path, where: str) -> RobotMod
         if looks_like_path:
             file = (Path(reference) if Path(reference).is_absolute() else base_dir / reference).resolve()
             if not file.is_file():
-                raise SceneError(f"{where}.robot: model file '{reference}' not found (looked for {file})")
+                raise SceneError(f"{where}.robot: '{reference}': {missing_file(file, 'model file')} (looked for {file})")
             return bundled.load(str(file))
         available = list(bundled.available())
         if reference not in available:

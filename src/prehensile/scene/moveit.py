@@ -40,7 +40,7 @@ from typing import Any, Iterator, Mapping
 import numpy as np
 import yaml
 
-from prehensile.errors import SceneError
+from prehensile.errors import SceneError, missing_file
 from prehensile.model.geometry import Box, Cylinder, Geometry, Mesh, Sphere
 from prehensile.model.robot_model import RobotModel
 from prehensile.scene.scene import Body, PlacedRobot, Scene
@@ -380,7 +380,7 @@ def _label(obj: Any) -> str:
 
 def _read_yaml_file(path: Path) -> Any:
     if not path.is_file():
-        raise SceneError(f"{path}: file not found")
+        raise SceneError(f"{path}: {missing_file(path)}")
     return _parse(_read_text(path), str(path))
 
 
