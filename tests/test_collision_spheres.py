@@ -255,6 +255,8 @@ def test_world_clearance_is_the_exact_ball_distance():
     assert np.array_equal(inside.ravel(), model.within_limits(outside)) and not inside.all()
     screened_free, near = checker.screen(q, margin)[1:]
     assert np.array_equal(screened_free, checker.is_free(q))
+    single = checker.single_test()  # the callback test of one configuration: the same verdicts
+    assert [single(row) for row in q] == checker.is_free(q).tolist()
     assert np.array_equal(near, clearance < margin)
     assert 20 < (near.ravel() & free).sum() < free.sum() - 20  # near and far free configurations
 
@@ -319,6 +321,7 @@ def test_checker_inputs_a_robot_without_joints_and_contacts_of_the_base():
         SphereModel(balls.link_names, balls.sphere_link, balls.centers, np.full(balls.n_spheres, np.nan))
     checker = SphereChecker(model, [brick])
     assert checker.static_hit and ("base", "world") in checker.ball_contacts(np.zeros(2))
+    assert not checker.single_test()(np.zeros(2)) and not checker.is_free(np.zeros(2))
     rigid = build_model("rigid", "test", [LinkSpec("base", collisions=[Geometry(Box((0.2, 0.2, 0.2)))])], [])
     for world, free in (([], True), ([brick], False)):
         checker = SphereChecker(rigid, world)

@@ -7,9 +7,11 @@ What OMPL gets, so that the comparison measures the planners and not the problem
   and here, widened to a start or goal beyond). OMPL's own metric (Euclidean in joint space)
   and its default range (20 % of the space's extent) are left as OMPL chooses them.
 - **State validity**: our :class:`~prehensile.collision.sphere_checker.SphereChecker`,
-  called once per state from C++ through a Python callback (``is_free`` on one configuration).
-  The callback costs some microseconds per state; :func:`validity_call_seconds` measures it so
-  reports can say how much of OMPL's time it is.
+  called once per state from C++ through a Python callback that copies the state into a
+  configuration and runs the compiled test with its arrays bound once
+  (:meth:`~prehensile.collision.sphere_checker.SphereChecker.single_test`). The callback
+  costs some microseconds per state (half of what ``is_free`` on one configuration costs);
+  :func:`validity_call_seconds` measures it so reports can say how much of OMPL's time it is.
 - **Motion validation**: OMPL's ``DiscreteMotionValidator`` with a resolution giving the same
   guarantee as ours. We space checks ``resolution`` m apart in the workspace-weighted distance
   ``sum_i w_i |dq_i|`` (no surface point moves more than that between checks). Since
@@ -129,12 +131,13 @@ def ompl_rrt_connect(space: ConfigurationSpace, checker: SphereChecker, q_start:
     q = np.array(space.q_ref, dtype=float)
     indices = [int(i) for i in space.indices]
     calls = [0]
+    free = checker.single_test()
 
     def is_valid(state) -> bool:
         calls[0] += 1
         for k, i in enumerate(indices):
             q[i] = state[k]
-        return bool(checker.is_free(q))
+        return free(q)
 
     setup.setStateValidityChecker(is_valid)
     info = setup.getSpaceInformation()
@@ -172,11 +175,12 @@ def _status(ob, status) -> PlanStatus:
 
 
 def validity_call_seconds(checker: SphereChecker, q: np.ndarray, repeats: int = 2000) -> float:
-    """Mean time (s) of one single-configuration ``checker.is_free`` call at q (dof,), the cost
-    OMPL pays per state on top of its own work."""
-    q = np.array(q, dtype=float)
-    checker.is_free(q)
+    """Mean time (s) of the peer's compiled test of one configuration q (dof,)
+    (:meth:`SphereChecker.single_test`), the cost OMPL pays per state on top of its own work
+    and the state's copy."""
+    q, free = np.array(q, dtype=float), checker.single_test()
+    free(q)
     start = time.perf_counter()
     for _ in range(repeats):
-        checker.is_free(q)
+        free(q)
     return (time.perf_counter() - start) / repeats

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import functools
 import math
-from typing import Sequence
+from typing import Callable, Sequence
 
 import numpy as np
 
@@ -272,6 +272,15 @@ class SphereChecker:
         else:
             K.check_batch(flat, self.data, self._scratch, self._scales, out, False)
         return out.reshape(q.shape[:-1])
+
+    def single_test(self) -> Callable[[np.ndarray], bool]:
+        """A test ``free(q) -> bool`` of one configuration q (dof,) float64, as :meth:`is_free`
+        but with nothing checked and the arrays bound once: for callbacks from other libraries
+        (OMPL's state validity), where the per-call cost counts (half that of ``is_free``)."""
+        if self.static_hit:
+            return lambda q: False
+        data, scratch, scales = self.data, self._scratch, self._scales
+        return lambda q: K.free_one(q, data, scratch, scales)
 
     def clearance(self, q: np.ndarray, cap: float = np.inf, self_pairs: bool = True) -> np.ndarray:
         """(*batch,) smallest distance (m) between a ball and an obstacle or (if ``self_pairs``)

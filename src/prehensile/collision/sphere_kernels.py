@@ -271,6 +271,12 @@ def screen_batch(qs, lower, upper, data, scratch, scales, world_scales, margin, 
 
 
 @njit(cache=True, fastmath=FAST)
+def free_one(q, data, scratch, scales):
+    """True if configuration q (dof,) is free (:func:`check_batch` of one, without the batch)."""
+    return clearance(q, data, scratch, 0.0, scales, 0.0) >= 0.0
+
+
+@njit(cache=True, fastmath=FAST)
 def check_batch(qs, data, scratch, scales, out, stop_at_first):
     """Check configurations qs (B, dof); out[b] = qs[b] is free (out (B,) bool).
 
