@@ -276,10 +276,12 @@ class SphereChecker:
     def single_test(self) -> Callable[[np.ndarray], bool]:
         """A test ``free(q) -> bool`` of one configuration q (dof,) float64, as :meth:`is_free`
         but with nothing checked and the arrays bound once: for callbacks from other libraries
-        (OMPL's state validity), where the per-call cost counts (half that of ``is_free``)."""
+        (OMPL's state validity), where the per-call cost counts (half that of ``is_free``). The
+        test is compiled (or loaded from numba's cache) here, before any caller's clock starts."""
         if self.static_hit:
             return lambda q: False
         data, scratch, scales = self.data, self._scratch, self._scales
+        K.free_one(np.zeros(self.model.dof), data, scratch, scales)
         return lambda q: K.free_one(q, data, scratch, scales)
 
     def clearance(self, q: np.ndarray, cap: float = np.inf, self_pairs: bool = True) -> np.ndarray:
