@@ -77,11 +77,17 @@ def test_bad_paths_and_resolutions_are_errors(arm):
     path = np.array([[0.0, 0.0], [0.5, 0.5]])
     with pytest.raises(PrehensileError, match=r"shape \(N >= 1, 2\)"):
         certify_path(ctx, np.zeros((0, 2)))
-    for resolution in (0.0, -1.0):
-        with pytest.raises(PrehensileError, match="resolution must be positive"):
+    # inf would prove a segment from its ends alone; 1e-9 m would size the bisection queue in terabytes
+    for resolution in (0.0, -1.0, np.inf, np.nan, 1e-9, "fine"):
+        with pytest.raises(PrehensileError, match=r"certify_path: resolution: must be a finite length >= 1e-05 m"):
             certify_path(ctx, path, resolution)
-        with pytest.raises(PrehensileError, match="resolution must be positive"):
+        with pytest.raises(PrehensileError, match=r"check_motion: resolution: must be a finite length >= 1e-05 m"):
             ctx.check_motion(path[0], path[1], resolution)
+        with pytest.raises(PrehensileError, match=r"check_motion: resolution: must be a finite"):
+            ctx.check_motions(path[:1], path[1:], resolution)
+        for name in ("resolution", "certify_resolution"):
+            with pytest.raises(PrehensileError, match=f"PlanningContext: {name}: must be a finite length"):
+                PlanningContext(model, [], spheres=spheres, **{name: resolution})
     assert certify_path(ctx, path[:1]).ok
 
 

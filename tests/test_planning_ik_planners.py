@@ -174,9 +174,17 @@ def test_multi_eef_rrt_names_missing_samplers_and_contexts(panda_scene):
         multi_eef_rrt({"left": ctx}, q0, {"right": grasp_sampler(ctx, solver, goals, q0)})
 
 
+def test_jplus_rrt_takes_one_start(panda_scene):
+    ctx, _, q0, goals = panda_scene
+    for start in (q0[None], np.stack([q0, q0])):
+        with pytest.raises(PrehensileError, match=r"q_start: expected one configuration \(\d+,\)"):
+            jplus_rrt(ctx, start, goals)
+
+
 def test_settings_are_validated():
     # an infinite budget would search forever for an unreachable pose, or fail in the inner search
-    for bad, valid in (({"time_budget_s": -1.0}, "> 0 and finite, got -1.0"), ({"time_budget_s": np.inf}, "> 0 and finite, got inf"),
+    for bad, valid in (({"time_budget_s": -1.0}, "> 0 and finite, got -1.0"),
+                       ({"time_budget_s": np.inf}, "> 0 and finite, got inf"),
                        ({"ik_attempts": 0}, ">= 1, got 0"), ({"first_round_iterations": 0}, ">= 1")):
         with pytest.raises(PrehensileError, match=f"IKRRTSettings.{next(iter(bad))} must be {valid}"):
             IKRRTSettings(**bad)

@@ -176,6 +176,27 @@ def test_invalid_start_and_goal(arm):
     assert ctx.spheres.ball_contacts(free) == [] and ("l2", "world") in ctx.spheres.ball_contacts(np.zeros(3))
     with pytest.raises(Exception, match="q_goal"):
         rrt_connect(ctx, free, np.zeros(4), settings)
+    with pytest.raises(PrehensileError, match=r"q_goal: no goals given \(shape \(0, 3\)\)"):
+        rrt_connect(ctx, free, np.zeros((0, 3)), settings)
+    with pytest.raises(PrehensileError, match="q_start: expected numbers, got 'abc'"):
+        rrt_connect(ctx, "abc", free, settings)
+    for rng in (-1, 1.5):
+        with pytest.raises(PrehensileError, match=f"rng: expected a numpy Generator, a seed .*, got {rng}"):
+            rrt_connect(ctx, free, np.zeros(3), settings, rng=rng)
+
+
+def test_the_search_keeps_its_own_ends(arm):
+    """Changing the caller's start after the search began changes nothing; goals equal to the
+    start within 1e-9 in a joint not planned end the path exactly at the start's value."""
+    model, spheres = arm
+    ctx = PlanningContext(model, [], joints=["j1", "j2"], spheres=spheres)
+    start, goal = np.array([0.2, 0.0, 0.3]), np.array([1.0, 0.5, 0.3 + 1e-10])
+    search = RRTConnectSearch(ctx, start, RRTConnectSettings())
+    search.add_goals(goal)
+    start[:] = 0.0
+    result = search.solve(1.0)
+    assert result.success and np.array_equal(result.path[0], [0.2, 0.0, 0.3])
+    assert np.all(result.path[:, 2] == 0.3) and goal[2] == 0.3 + 1e-10  # the caller's goal is untouched
 
 
 def test_batched_motion_checks_match_single_ones(arm):
@@ -317,6 +338,7 @@ def test_attached_objects_are_validated_and_may_be_several_shapes(arm):
             AttachedObject("plate", "l3", shape)
     with pytest.raises(PrehensileError, match="'plate': T_link_object: upper-left 3x3 block is not a rotation"):
         AttachedObject("plate", "l3", bar, 2.0 * np.eye(4))
+    assert AttachedObject("plate", "l3", bar, touch_links="l2").touch_links == ("l2",)  # one name, not its letters
     dumbbell = AttachedObject("dumbbell", "l3", [bar, Geometry(ball, make_pose(position=[0.1, 0, 0]))])
     assert [g.shape for g in dumbbell.geometries()] == [bar, ball]
     mirrored = AttachedObject("wedge", "l3", Mesh(WEDGE, (1.0, -1.0, 1.0)))  # a mirror image, as URDF allows

@@ -100,8 +100,9 @@ def test_single_configuration_and_bad_input():
         time_parameterize(path, np.array([1.0, 0.0]), 1.0)
     with pytest.raises(PrehensileError, match="acceleration_limits"):
         time_parameterize(path, 1.0, np.ones(3))
-    with pytest.raises(PrehensileError, match="dt"):
-        time_parameterize(path, 1.0, 1.0, dt=0.0)
+    for dt in (0.0, float("inf")):
+        with pytest.raises(PrehensileError, match="dt must be a positive, finite time"):
+            time_parameterize(path, 1.0, 1.0, dt=dt)
     for step in (0.0, -0.01, float("nan")):
         with pytest.raises(PrehensileError, match="blend_step must be positive"):
             time_parameterize(path, 1.0, 1.0, blend_check=lambda a, b: True, blend_step=step)

@@ -229,7 +229,10 @@ class RobotModel:
 
     def check_configuration(self, q: np.ndarray, what: str = "q") -> np.ndarray:
         """Validate q of shape (*batch, dof): right length and finite; returns it as float64."""
-        q = np.asarray(q, dtype=float)
+        try:
+            q = np.asarray(q, dtype=float)
+        except (TypeError, ValueError):
+            raise PrehensileError(f"{what}: expected numbers, got {q!r:.80}") from None
         if q.ndim == 0 or q.shape[-1] != self.dof:
             raise PrehensileError(
                 f"{what}: expected shape (..., {self.dof}) for robot '{self.name}' "

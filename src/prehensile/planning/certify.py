@@ -47,7 +47,7 @@ from prehensile.collision.world import Obstacle
 from prehensile.errors import PrehensileError
 from prehensile.kinematics.kernels import fk_into
 from prehensile.model.robot_model import RobotModel
-from prehensile.planning.context import PlanningContext, motion_weights
+from prehensile.planning.context import PlanningContext, check_resolution, motion_weights
 
 _TOLERANCE = 1e-6  # m taken off every coal distance (GJK converges to about this)
 ESCAPE_ATTEMPTS = 64  # escape directions tried by default (drawn this many at a time until a deadline)
@@ -350,9 +350,7 @@ def certify_path(ctx: PlanningContext, path: np.ndarray, resolution: float | Non
     path = ctx.model.check_configuration(path, "path")
     if path.ndim != 2 or len(path) < 1:
         raise PrehensileError(f"certify_path: path must have shape (N >= 1, {ctx.model.dof}), got {path.shape}")
-    res = ctx.certify_resolution if resolution is None else float(resolution)
-    if not res > 0:
-        raise PrehensileError(f"certify_path: resolution must be positive (m), got {resolution}")
+    res = ctx.certify_resolution if resolution is None else check_resolution(resolution, "certify_path: resolution")
     return ctx.certifier.certify(path, res)
 
 

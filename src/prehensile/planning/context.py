@@ -38,6 +38,19 @@ from prehensile.planning.cspace import ConfigurationSpace
 from prehensile.planning.result import PlanResult
 from prehensile.spatial.transforms import check_one_pose
 
+MIN_RESOLUTION = 1e-5  # m: finer checks only cost memory (the bisection queue) and time
+
+
+def check_resolution(value: float, what: str) -> float:
+    """``value`` (m) as a motion-check or certification resolution: finite, >= :data:`MIN_RESOLUTION`."""
+    try:
+        res = float(value)
+    except (TypeError, ValueError):
+        res = np.nan
+    if not MIN_RESOLUTION <= res < np.inf:
+        raise PrehensileError(f"{what}: must be a finite length >= {MIN_RESOLUTION} m, got {value!r}")
+    return res
+
 
 @dataclass(frozen=True, eq=False)
 class AttachedObject:
@@ -51,7 +64,7 @@ class AttachedObject:
         link: the link that holds it.
         shape: a shape in the object frame, a :class:`Geometry` or a tuple of them.
         T_link_object: (4, 4) pose of the object frame in the link frame.
-        touch_links: further links allowed to touch it.
+        touch_links: further links allowed to touch it (names, or one name).
     """
 
     name: str
@@ -62,6 +75,8 @@ class AttachedObject:
 
     def __post_init__(self) -> None:
         where = f"AttachedObject '{self.name}'"
+        if isinstance(self.touch_links, str):  # one link, not its letters
+            object.__setattr__(self, "touch_links", (self.touch_links,))
         check_one_pose(self.T_link_object, f"{where}: T_link_object")
         parts = self.shape if isinstance(self.shape, (list, tuple)) else (self.shape,)
         if not parts:
@@ -255,8 +270,8 @@ class PlanningContext:
                  spheres: SphereModel | None = None, acm: np.ndarray | None = None,
                  attached: Sequence[AttachedObject] = (), resolution: float = 0.005,
                  certify_resolution: float = 0.002, cover: SphereModel | None = None) -> None:
-        if not (resolution > 0 and certify_resolution > 0):
-            raise PrehensileError(f"resolutions must be positive, got {resolution}, {certify_resolution}")
+        resolution = check_resolution(resolution, "PlanningContext: resolution")
+        certify_resolution = check_resolution(certify_resolution, "PlanningContext: certify_resolution")
         if cover is not None and not cover.covering:
             raise PrehensileError("PlanningContext: cover must be a covering sphere model (generated or padded)")
         if isinstance(attached, AttachedObject) or not all(isinstance(a, AttachedObject) for a in attached):
@@ -267,8 +282,8 @@ class PlanningContext:
         self.model = model
         self.obstacles = check_obstacles(obstacles)
         self.attached = tuple(attached)
-        self.resolution = float(resolution)
-        self.certify_resolution = float(certify_resolution)
+        self.resolution = resolution
+        self.certify_resolution = certify_resolution
         self.T_world_base = np.eye(4) if T_world_base is None else check_one_pose(T_world_base,
                                                                                   "PlanningContext: T_world_base")
         base_spheres = generate_sphere_model(model) if spheres is None else spheres
@@ -528,10 +543,7 @@ class PlanningContext:
         shape), which must agree in the joints not planned."""
         if np.any(np.abs(qa[..., self.space.fixed] - qb[..., self.space.fixed]) > 1e-9):
             raise PrehensileError("check_motion: qa and qb differ in joints the context does not plan")
-        res = self.resolution if resolution is None else float(resolution)
-        if not res > 0:
-            raise PrehensileError(f"check_motion: resolution must be positive (m), got {resolution}")
-        return res
+        return self.resolution if resolution is None else check_resolution(resolution, "check_motion: resolution")
 
     def warm_up(self, certify: bool) -> None:
         """Build, if ``certify``, the exact certifier now (once per context; the robot's coal

@@ -262,7 +262,7 @@ def _grow(ctx: PlanningContext, q_start: np.ndarray, goals, s: JPlusRRTSettings,
     ctx.warm_up(s.certify or s.escape)
     start_time = clock()
     rng = planner_rng(rng)
-    q_start = np.array(ctx.model.check_configuration(q_start, "q_start"), dtype=float)
+    q_start = ctx.model.check_one(q_start, "q_start").copy()
     counted = int(ctx.counters[0])
     valid, escape = bool(ctx.is_valid(q_start)), None
     deadline = start_time + s.time_budget_s

@@ -403,7 +403,7 @@ class RRTConnectSearch:
         self.ctx, self.settings = ctx, settings
         self.rng = planner_rng(rng)
         model = ctx.model
-        self.start = model.check_one(q_start, "rrt_connect: q_start")
+        self.start = model.check_one(q_start, "rrt_connect: q_start").copy()  # the caller may change theirs
         self.goals = np.zeros((0, model.dof))  # the goals as planned (ConfigurationSpace.goal_turns)
         self.goal_of = np.zeros(0, dtype=np.int64)  # row of the goals as given, per row of self.goals
         self.given = 0  # goals given
@@ -425,13 +425,16 @@ class RRTConnectSearch:
         goals = model.check_configuration(q_goals, "q_goal")
         if goals.ndim > 2 or goals.shape[-1] != model.dof:
             raise PrehensileError(f"rrt_connect: q_goal must be ({model.dof},) or (k, {model.dof}), got {goals.shape}")
-        goals = goals.reshape(-1, model.dof)
+        goals = goals.reshape(-1, model.dof).copy()  # its unplanned joints are set below
+        if not len(goals):
+            raise PrehensileError(f"rrt_connect: q_goal: no goals given (shape {goals.shape})")
         fixed = space.fixed
         differ = fixed[(np.abs(goals[:, fixed] - self.start[fixed]) > 1e-9).any(axis=0)]
         if len(differ):
             raise PrehensileError("rrt_connect: goal and start differ in joints that are not planned "
                                   f"({', '.join(model.joint_names[i] for i in differ)}; planned: "
                                   f"{', '.join(space.joint_names)})")
+        goals[:, fixed] = self.start[fixed]  # equal within 1e-9: the path keeps them constant
         planned, rows = space.goal_turns(goals, self.start)
         first = len(self.goals)
         self.goals = np.concatenate((self.goals, planned))

@@ -292,8 +292,8 @@ def time_parameterize(path: np.ndarray, velocity_limits: float | np.ndarray, acc
                                   f"got {value}")
         limits.append(np.broadcast_to(value, (n,)).copy())
     velocity, acceleration = limits
-    if not dt > 0:
-        raise PrehensileError(f"time_parameterize: dt must be positive (s), got {dt}")
+    if not 0 < dt < np.inf:
+        raise PrehensileError(f"time_parameterize: dt must be a positive, finite time (s), got {dt}")
     if not blend_step > 0:
         raise PrehensileError(f"time_parameterize: blend_step must be positive (rad or m), got {blend_step}")
     corners = _corners(path)
