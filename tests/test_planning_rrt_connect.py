@@ -23,7 +23,7 @@ from prehensile.collision import sphere_kernels as SK
 from prehensile.planning.certify import certified_escape
 from prehensile.planning.context import ball_joint_weights
 from prehensile.planning.kernels import BLOCKED, FREE, NO_LIMIT, _scales, motion_free
-from prehensile.planning.shortcut import prune, shortcut_rows, waypoint_marks
+from prehensile.planning.shortcut import MAX_INSERTED, prune, shortcut_rows, waypoint_marks
 from prehensile.spatial import make_pose
 
 from conftest import MBM, WEDGE, require_shared
@@ -500,6 +500,16 @@ def test_shortcut_never_lengthens_nor_invalidates(arm):
                 dict(min_gain=-0.1), dict(min_gain=1.0)):
         with pytest.raises(PrehensileError, match="shortcut: iterations must be a count >= 0"):
             shortcut(ctx, detour, 0, **bad)
+    with pytest.raises(PrehensileError, match="shortcut: resolution: must be a finite length"):
+        shortcut(ctx, detour, 0, resolution=float("inf"))  # would let every shortcut through the wall
+    # rows for the inserted waypoints are capped, not one per attempt; a full buffer ends the attempts
+    assert len(shortcut(ctx, detour, 0, iterations=10**9, time_budget_s=0.01)) <= len(detour) + MAX_INSERTED
+    buffer, marks = np.empty((len(detour) + 1, 3)), waypoint_marks(len(detour) + 1)
+    buffer[:len(detour)], marks[0][:len(detour)] = detour, np.arange(len(detour))
+    n = shortcut_rows(ctx, buffer, len(detour), marks, np.random.default_rng(0), 200, 0.0, 1.0, ctx.resolution, None,
+                      prune_first=False)
+    assert n <= len(buffer) and np.array_equal(buffer[n - 1], goal)
+    assert all(ctx.check_motion(a, b) for a, b in zip(buffer[:n - 1], buffer[1:n]))
     with pytest.raises(PrehensileError, match=r"shortcut: the input path must be valid; its edge 1 .* hits an obstacle"):
         shortcut(ctx, np.array([start, start, goal]), 0)  # the straight motion sweeps through the wall
     # pruning again spends no check on the pairs of waypoints found blocked before

@@ -52,7 +52,7 @@ from prehensile.planning.kernels import (
 )
 from prehensile.planning.result import PlanResult, PlanStats, PlanStatus
 from prehensile.planning.seeding import planner_rng
-from prehensile.planning.shortcut import MIN_GAIN, prune, shortcut_rows, waypoint_marks
+from prehensile.planning.shortcut import MAX_INSERTED, MIN_GAIN, prune, shortcut_rows, waypoint_marks
 from prehensile.settings import FINITE_POSITIVE, NON_NEGATIVE, POSITIVE, at_least, check_fields
 
 RUNNING, FOUND, FULL = 0, 1, 2  # kernel results
@@ -470,7 +470,7 @@ class RRTConnectSearch:
         self.start_status = PlanStatus.INVALID_START if start is None and clock() < deadline else None
         if start is not None:
             self.trees = _Trees(start, min(1024, self.settings.max_nodes), self.context.space,
-                                self.settings.shortcut_iterations)
+                                min(self.settings.shortcut_iterations, MAX_INSERTED))
             self.escapes = len(start) - 1
             self._add_goal_nodes(0, goal_nodes)
 

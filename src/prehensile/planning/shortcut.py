@@ -26,7 +26,7 @@ from numba import njit
 from prehensile.clock import clock
 from prehensile.errors import PrehensileError
 from prehensile.planning.certify import check_valid_path
-from prehensile.planning.context import PlanningContext
+from prehensile.planning.context import PlanningContext, check_resolution
 from prehensile.planning.kernels import FREE, NO_LIMIT, assign, distance, motion_free, rng_state, uniform
 from prehensile.planning.seeding import planner_rng
 
@@ -53,6 +53,9 @@ _WINDOW = 16  # waypoints ahead that pruning tries to reach (bounds its checks t
 # and mean path length at 0 / 3e-3 / 0.01 / 0.02 / 0.03 / 0.05 / 0.1: 582 / 537 / 501 / 485 /
 # 462 / 426 / 411, 7.84 / 7.86 / 7.90 / 7.94 / 7.99 / 8.09 / 8.31 m (16 attempts; none: 8.99 m).
 MIN_GAIN = 0.03
+# most waypoints random shortcuts add to a path (each adds at most one): the rows reserved for
+# them, whatever the attempts (a time limit, not a row count, bounds those)
+MAX_INSERTED = 1024
 
 
 def waypoint_marks(rows: int) -> tuple:
@@ -126,14 +129,14 @@ def simplify(path, n, marks, iterations, min_gain, first, last, rng, idx, w, res
              cum, qa, qb):
     """Prune path[:n] in place if ``first``, make ``iterations`` random shortcut attempts (each
     checked only if it saves more than ``min_gain`` of the length), prune again if ``last``;
-    returns the new count. Rows of ``path`` must be >= n + iterations;
-    ``marks`` as for :func:`prune`; ``cum`` (rows,), qa and qb (dof,) are work arrays, ``rng``
+    returns the new count. Each shortcut adds at most one waypoint; the attempts stop early when
+    ``path`` has no row left for one more (:data:`MAX_INSERTED`); ``marks`` as for :func:`prune`; ``cum`` (rows,), qa and qb (dof,) are work arrays, ``rng``
     the (1,) uint64 state."""
     ids, checked, _ = marks
     if first:
         n = prune(path, n, marks, idx, w, res, checker, scratch, motion, counters)
     for _ in range(iterations):
-        if n < 3:
+        if n < 3 or n == path.shape[0]:
             break
         cum[0] = 0.0
         for i in range(n - 1):
@@ -191,7 +194,8 @@ def shortcut(ctx: PlanningContext, path: np.ndarray, rng: np.random.Generator | 
             fraction of its length (0: every one; larger values spend fewer checks on small gains).
 
     Returns:
-        (M, dof) waypoints, M <= N + iterations, first and last equal to the input's.
+        (M, dof) waypoints, M <= N + min(iterations, :data:`MAX_INSERTED`), first and last equal
+        to the input's.
     """
     if not (int(iterations) == iterations and iterations >= 0 and time_budget_s >= 0 and 0 <= min_gain < 1):
         raise PrehensileError(f"shortcut: iterations must be a count >= 0, time_budget_s >= 0 (s) and min_gain in "
@@ -199,10 +203,8 @@ def shortcut(ctx: PlanningContext, path: np.ndarray, rng: np.random.Generator | 
     path = check_valid_path(ctx, path, "shortcut")
     if len(path) < 3:
         return path.copy()
-    res = ctx.resolution if resolution is None else float(resolution)
-    if not res > 0:
-        raise PrehensileError(f"shortcut: resolution must be positive (m), got {resolution}")
-    buffer = np.empty((len(path) + int(iterations), ctx.model.dof))
+    res = ctx.resolution if resolution is None else check_resolution(resolution, "shortcut: resolution")
+    buffer = np.empty((len(path) + min(int(iterations), MAX_INSERTED), ctx.model.dof))
     buffer[:len(path)] = path
     marks = waypoint_marks(len(buffer))
     marks[0][:len(path)] = np.arange(len(path))
@@ -215,7 +217,7 @@ def shortcut_rows(ctx: PlanningContext, buffer: np.ndarray, n: int, marks: tuple
                   iterations: int, min_gain: float, time_budget_s: float, res: float, stats: np.ndarray | None,
                   prune_first: bool) -> int:
     """:func:`shortcut` of the valid path buffer[:n] (n >= 3), in place; returns the new count.
-    ``buffer`` (rows >= n + iterations, dof) and ``marks`` (:func:`waypoint_marks` of as many
+    ``buffer`` (rows > n, dof; :data:`MAX_INSERTED` more rows let every attempt run) and ``marks`` (:func:`waypoint_marks` of as many
     rows, ids set for the first n) are overwritten. Without ``prune_first`` the path is not
     pruned first: it has been (:func:`prune`, with these marks), and the pairs its memo holds
     blocked are not checked again."""
