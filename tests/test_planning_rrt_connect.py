@@ -167,6 +167,9 @@ def test_invalid_start_and_goal(arm):
     assert goal_set.success and "reason" not in goal_set.info and goal_set.goal_index == 1
     unusable = rrt_connect(ctx, free, np.array([[0.0, 2.9, 0.0], np.zeros(3)]), settings)
     assert re.fullmatch(r"goal 0: joint .*; goal 1: \w+ collides with block .*", unusable.info["reason"])
+    many = rrt_connect(ctx, free, np.array([[0.0, 2.9 + 0.01 * i, 0.0] for i in range(8)]), settings)
+    assert many.status is PlanStatus.INVALID_GOAL  # the first few reasons are told, not thousands
+    assert re.fullmatch(r"(goal [0-4]: joint [^;]*; ){5}3 more goals rejected", many.info["reason"])
     assert re.fullmatch(r"\w+ collides with block \(\d+\.\d mm deep\)(; .*)?", ctx.why_invalid(np.zeros(3)))
     assert re.fullmatch(r"joint \w+ = 2\.9 outside its limits \[-?[\d.]+, [\d.]+\]",
                         ctx.why_invalid(np.array([0.0, 2.9, 0.0])))
@@ -270,6 +273,36 @@ def test_a_continuous_joint_turns_the_shorter_way_unless_it_is_blocked(blocked):
     assert result.goal_index == 0
     turned = result.path[:, 0]
     assert (turned.min(), turned.max()) == ((-2.8, 2.8) if blocked else (2.8, pytest.approx(reached[0])))
+
+
+def test_direct_edges_to_a_goal_set_take_steps_like_iterations(arm):
+    """One kernel call tries at most as many goals' direct edges as it may run iterations (a
+    large goal set cannot keep it from the clock); goals added later get theirs, not the nodes
+    the search grew meanwhile."""
+    from prehensile.planning.rrt_connect import DIRECT, DIRECT_END, ITERATIONS, RUNNING, SIZE, search as search_kernel
+
+    model, spheres = arm
+    slot = [_box(f"side {y}", [0.7, y, 0.1], [1.0, 0.04, 0.4]) for y in (-0.1, 0.1)]
+    ctx = PlanningContext(model, slot, spheres=spheres)
+    query = RRTConnectSearch(ctx, np.zeros(3), FAST, 0)  # stretched out in a slot it cannot leave
+    goals = np.column_stack([np.linspace(1.2, 2.0, 30), np.zeros(30), np.zeros(30)])  # all out of the slot
+    query.add_goals(goals)
+    query._build_trees(np.inf)
+    trees, space = query.trees, ctx.space
+    bounds = space.sampling_bounds(query.start[space.indices])
+    assert (trees.counters[DIRECT], trees.counters[DIRECT_END]) == (0, 30)
+
+    def steps(count: int) -> int:
+        return search_kernel(trees.nodes, trees.parents, trees.flags, trees.points, trees.work, trees.counters,
+                             trees.path, trees.marks, trees.owner, True, query.state, count, 1.0, query.res, 3,
+                             space.indices, space.weights, *bounds, query.start.copy(),
+                             ctx.spheres.data, ctx.scratch, ctx.motion_arrays(query.res))
+
+    assert steps(4) == RUNNING and trees.counters[DIRECT] == 4 and trees.counters[ITERATIONS] == 0
+    assert steps(40) == RUNNING and trees.counters[DIRECT] == 30 and trees.counters[ITERATIONS] == 14
+    grown = int(trees.counters[SIZE + 1])
+    query.add_goals(goals[:2])
+    assert (trees.counters[DIRECT], trees.counters[DIRECT_END]) == (grown, grown + 2)
 
 
 def test_a_search_stops_at_its_iteration_cap(arm):

@@ -38,6 +38,7 @@ from prehensile.planning.cspace import ConfigurationSpace
 from prehensile.planning.result import PlanResult
 from prehensile.spatial.transforms import check_one_pose
 
+EXPLAINED_GOALS = 5  # goals of a goal set whose rejection PlanningContext.explain puts in words
 MIN_RESOLUTION = 1e-5  # m: finer checks only cost memory (the bisection queue) and time
 
 
@@ -494,14 +495,22 @@ class PlanningContext:
     def explain(self, result: PlanResult, q_start: np.ndarray, q_goal: np.ndarray | None = None) -> PlanResult:
         """``result`` with ``info["reason"]``: why its :attr:`~PlanResult.blamed_ends` are
         unusable (:meth:`why_invalid`), "start: ...; goal: ..." ("goal 2: ..." for row 2 of a
-        goal set (k, dof)); unchanged if none of them has a reason. q_start (dof,), q_goal
+        goal set (k, dof): the first :data:`EXPLAINED_GOALS` of those :meth:`is_valid` rejects,
+        then how many more); unchanged if none of them has a reason. q_start (dof,), q_goal
         (dof,) or (k, dof) as given to the planner (None: no goal configuration)."""
-        ends = [("start", q_start)] if "start" in result.blamed_ends else []
+        ends, more = [("start", q_start)] if "start" in result.blamed_ends else [], 0
         if "goal" in result.blamed_ends and q_goal is not None:
-            goals = np.reshape(q_goal, (-1, self.model.dof))
-            ends += [("goal" if np.ndim(q_goal) == 1 else f"goal {i}", q) for i, q in enumerate(goals)]
-        reason = "; ".join(f"{name}: {why}" for name, q in ends if (why := self.why_invalid(q)))
-        return dataclasses.replace(result, info={**result.info, "reason": reason}) if reason else result
+            if np.ndim(q_goal) == 1:
+                ends.append(("goal", q_goal))
+            else:  # the exact checks of why_invalid cost milliseconds each: not for thousands of goals
+                goals = np.reshape(q_goal, (-1, self.model.dof))
+                rejected = np.flatnonzero(~self.is_valid(goals))
+                ends += [(f"goal {i}", goals[i]) for i in rejected[:EXPLAINED_GOALS]]
+                more = len(rejected) - min(len(rejected), EXPLAINED_GOALS)
+        reasons = [f"{name}: {why}" for name, q in ends if (why := self.why_invalid(q))]
+        if more:
+            reasons.append(f"{more} more goals rejected")
+        return dataclasses.replace(result, info={**result.info, "reason": "; ".join(reasons)}) if reasons else result
 
     def check_motion(self, qa: np.ndarray, qb: np.ndarray, resolution: float | None = None) -> bool:
         """True if both ends are valid and the straight segment qa -> qb (full configurations

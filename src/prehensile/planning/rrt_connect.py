@@ -59,8 +59,8 @@ RUNNING, FOUND, FULL = 0, 1, 2  # kernel results
 _TRAPPED, _ADVANCED, _REACHED, _NO_ROOM = 0, 1, 2, 3  # extension results
 _CHECKED, _DEAD = 1, 2  # node flags: edge from the parent fully checked; cut off the tree
 # counters: clearance evaluations, iterations, tree sizes, start nodes, path length, goal root,
-# first goal node whose direct edges are not tried yet
-CHECKS, ITERATIONS, SIZE, START_NODES, PATH_LENGTH, GOAL_ROOT, DIRECT = 0, 1, 2, 4, 5, 6, 7
+# the goal-tree nodes [DIRECT, DIRECT_END) whose direct edges from the start are still to try
+CHECKS, ITERATIONS, SIZE, START_NODES, PATH_LENGTH, GOAL_ROOT, DIRECT, DIRECT_END = 0, 1, 2, 4, 5, 6, 7, 8
 
 
 @dataclass(frozen=True)
@@ -251,16 +251,17 @@ def _finish(nodes, parents, flags, points, counters, start_node, goal_node, join
 @njit(cache=True, _nrt=False)
 def search(nodes, parents, flags, points, work, counters, path, marks, owner, prune_path, rng, iterations, step, res,
            budget, idx, w, lower, upper, sample, checker, scratch, motion):
-    """Run up to ``iterations`` RRT-Connect iterations; returns RUNNING, FOUND or FULL.
+    """Run up to ``iterations`` steps, each a direct edge's goal or an RRT-Connect iteration;
+    returns RUNNING, FOUND or FULL.
 
     Tree 0 (start) and tree 1 (goals) hold nodes (2, capacity, dof) with parents (2,
     capacity) (-1 for roots), flags (2, capacity), the nodes' coordinates for :func:`nearest`
     ``points`` (2, n, capacity) (``work`` (capacity,) its scratch) and sizes
     ``counters[SIZE:SIZE + 2]``. The first ``counters[START_NODES]`` nodes of tree 0 are the
     start and its escape node; goals (roots with their escape nodes) may be appended to tree 1
-    between calls, and the direct edges from the start nodes to the goal nodes from
-    ``counters[DIRECT]`` on are tried first (the caller advances it to the tree's size after a
-    call, past the goals tried and the nodes the search added).
+    between calls. The direct edges from the start nodes to the goal nodes
+    ``[counters[DIRECT], counters[DIRECT_END])`` are tried first, goal by goal, so that a large
+    goal set spreads over calls (and the caller's time checks) like the iterations.
     Nodes flagged _DEAD are never extended (cut off, or a root that only its certified escape
     edge leaves).
     ``sample`` (dof,) holds the values of the joints not planned; ``lower``, ``upper`` (n,)
@@ -268,14 +269,20 @@ def search(nodes, parents, flags, points, work, counters, path, marks, owner, pr
     FOUND, path[:counters[PATH_LENGTH]] is the path, pruned if ``prune_path`` (rows of path,
     marks and owner >= 2 * capacity; see :func:`_finish`).
     """
-    for a in range(counters[START_NODES]):
-        for g in range(counters[DIRECT], counters[SIZE + 1]):
+    tried = 0
+    while counters[DIRECT] < counters[DIRECT_END]:
+        if tried == iterations:
+            return RUNNING
+        g = counters[DIRECT]
+        counters[DIRECT] += 1
+        tried += 1
+        for a in range(counters[START_NODES]):
             if not (flags[0, a] | flags[1, g]) & _DEAD and motion_free(
                     nodes[0, a], nodes[1, g], res, checker, scratch, motion, counters, NO_LIMIT, 0) == FREE:
                 if _finish(nodes, parents, flags, points, counters, a, g, False, path, marks, owner, prune_path, idx,
                            w, res, checker, scratch, motion):
                     return FOUND
-    for _ in range(iterations):
+    for _ in range(iterations - tried):
         t = counters[ITERATIONS] % 2
         counters[ITERATIONS] += 1
         for k in range(idx.shape[0]):
@@ -312,7 +319,7 @@ class _Trees:
         self.flags = np.zeros((2, capacity), dtype=np.int64)
         self.points, self.work = np.empty((2, space.n, capacity)), np.empty(capacity)
         self._path_rows(2 * capacity)
-        self.counters = np.zeros(8, dtype=np.int64)
+        self.counters = np.zeros(9, dtype=np.int64)
         self.append(0, start_nodes)
         self.counters[START_NODES] = len(start_nodes)
 
@@ -452,11 +459,23 @@ class RRTConnectSearch:
         self._add_goal_nodes(first, _endpoints(self.context, goals, toward, self.settings, self.rng, deadline))
 
     def _add_goal_nodes(self, first: int, goal_nodes: list) -> None:
-        """Roots (with escape nodes) of goals[first:] in the goal tree; None: an unusable goal."""
-        for row, nodes in enumerate(goal_nodes, first):
-            if nodes is not None:
-                self.goal_row[self.trees.append(1, nodes)] = int(self.goal_of[row])
-                self.escapes += len(nodes) - 1
+        """Roots (with escape nodes) of goals[first:] in the goal tree, in one append; None: an
+        unusable goal. Their direct edges from the start are tried next."""
+        counters = self.trees.counters
+        begin = int(counters[SIZE + 1])
+        nodes, roots = [], []  # roots: (node offset, row of the goals as given)
+        for row, goal in enumerate(goal_nodes, first):
+            if goal is not None:
+                offset = len(nodes)
+                roots.append((offset, int(self.goal_of[row])))
+                nodes += [(q, parent if parent < 0 else offset + parent, flags) for q, parent, flags in goal]
+                self.escapes += len(goal) - 1
+        if nodes:
+            at = self.trees.append(1, nodes)
+            self.goal_row.update((at + offset, row) for offset, row in roots)
+        if counters[DIRECT] == counters[DIRECT_END]:  # skip the nodes the search added since
+            counters[DIRECT] = begin
+        counters[DIRECT_END] = counters[SIZE + 1]
 
     def _build_trees(self, deadline: float) -> None:
         """New trees in the current context: the start (and its escape, searched until
@@ -504,7 +523,6 @@ class RRTConnectSearch:
             code = search(trees.nodes, trees.parents, trees.flags, trees.points, trees.work, trees.counters, trees.path,
                           trees.marks, trees.owner, settings.shortcut, self.state, chunk, settings.step, self.res,
                           settings.eager_checks, space.indices, space.weights, *work)
-            trees.counters[DIRECT] = trees.counters[SIZE + 1]  # only goals added later get direct edges
             now = clock()
             if code == FOUND:
                 return int(trees.counters[PATH_LENGTH]), int(trees.counters[GOAL_ROOT])
