@@ -174,6 +174,20 @@ def test_multi_eef_rrt_names_missing_samplers_and_contexts(panda_scene):
         multi_eef_rrt({"left": ctx}, q0, {"right": grasp_sampler(ctx, solver, goals, q0)})
 
 
+def test_jplus_rrt_reaches_a_pose_only_reachable_at_a_joint_limit():
+    """Jacobian steps are clamped into the limits: the tool pointing forward at table height
+    needs panda_joint2 or panda_joint5 at a limit in every IK solution found."""
+    model = robots.load("panda")
+    ref = np.array([0.0, -0.5, 0.0, -2.0, 0.0, 1.5, 0.785, 0.02])
+    ctx = PlanningContext(model, [], joints="arm", q_ref=ref)
+    target = make_pose(np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]]), [0.58, 0.0, 0.45])
+    result = jplus_rrt(ctx, ref, target[None], JPlusRRTSettings(time_budget_s=20.0), rng=2)
+    assert result.success, result.status
+    assert_valid_path(ctx, result.path, ref)
+    reached = ChainSolver(model, "arm").tool_pose(result.path[-1])
+    assert np.linalg.norm(reached[:3, 3] - target[:3, 3]) <= JPlusRRTSettings().position_tolerance + 1e-9
+
+
 def test_jplus_rrt_takes_one_start(panda_scene):
     ctx, _, q0, goals = panda_scene
     for start in (q0[None], np.stack([q0, q0])):

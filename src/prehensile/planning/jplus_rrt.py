@@ -4,9 +4,9 @@ Vahrenkamp 2011 §4.1 (Alg. 13-15) and §4.4.2 (Regrasp-J+-RRT, Alg. 18-20). The
 from the start by ordinary RRT steps; with probability ``goal_probability`` a random goal g
 (a grasp) is picked and the tree node nearest to it among the nodes not yet marked for g is
 pulled toward it by pseudoinverse steps, ``c' = c + J^+(c) clamp(Δp)``, each new
-configuration joining the tree. A blocked step (collision, joint limit, or no progress) marks
-the node for g, so that the same node is not pulled toward the same goal again. No IK solver
-is needed.
+configuration joining the tree (clamped into the joint limits). A blocked step (collision, or
+no progress) marks the node for g, so that the same node is not pulled toward the same goal
+again. No IK solver is needed.
 
 - :func:`jplus_rrt`: one tool, a set of tool poses (the grasps of an object); nearest node in
   the SE(3) metric ``|Δt| + rotation_weight * angle`` (§2.2).
@@ -132,7 +132,6 @@ class _PoseGoals:
     def __init__(self, ctx: PlanningContext, solver: ChainSolver, targets: np.ndarray, s: JPlusRRTSettings) -> None:
         self.solver, self.targets, self.s = solver, solver.targets(targets), s
         self.count = len(self.targets)
-        self.idx, self.lower, self.upper = ctx.space.indices, ctx.space.lower, ctx.space.upper
         self._scratch = (np.empty((len(solver.table), 3, 4)), np.empty((4, 4)), np.empty((6, solver.n)), np.empty(6))
 
     def tools(self, q: np.ndarray) -> np.ndarray:
@@ -141,8 +140,8 @@ class _PoseGoals:
     def distance(self, tools: np.ndarray, g: int) -> np.ndarray:
         return _se3_distance(tools[:, 0], self.targets[g], self.s.rotation_weight)
 
-    def step(self, q: np.ndarray, g: int) -> tuple[np.ndarray | None, float, float]:
-        """(q' or None outside the joint limits, position and rotation error at q)."""
+    def step(self, q: np.ndarray, g: int) -> tuple[np.ndarray, float, float]:
+        """(q' (dof,), position and rotation error at q)."""
         solver, s = self.solver, self.s
         frames, pose, jac, err = self._scratch
         ik_kernels.chain_pose_jacobian(q, solver.T_world_root, solver.table, solver.var_of_q, solver.T_tip_tcp,
@@ -153,8 +152,7 @@ class _PoseGoals:
         err[3:] *= min(1.0, s.max_step_rotation / max(rot_err, 1e-300))
         q_new = q.copy()
         q_new[solver.var_q] += np.linalg.pinv(jac) @ err  # the Jacobian's columns are in chain order
-        inside = np.all(q_new[self.idx] >= self.lower) and np.all(q_new[self.idx] <= self.upper)
-        return (q_new if inside else None), pos_err, rot_err
+        return q_new, pos_err, rot_err
 
     def info(self, q: np.ndarray, g: int) -> dict:
         return {}
@@ -318,16 +316,18 @@ def _extend_randomly(ctx: PlanningContext, tree: _Tree, goals, step: float, boun
 def _extend_to_goal(ctx: PlanningContext, tree: _Tree, node: int, g: int, goals, s: JPlusRRTSettings) -> int:
     """ExtendToGoal (Alg. 14): Jacobian steps from ``node`` toward goal g, each new
     configuration a tree node; the node reaching it, or -1 when a step is blocked (collision,
-    joint limit, or an error that stops shrinking) or the steps run out. Within
+    or an error that stops shrinking) or the steps run out. A step is clamped into the joint
+    limits (a goal whose every IK solution has a joint at its limit stays reachable). Within
     ``s.exact_approach`` of the goal a step the balls block may pass on the exact geometry."""
-    last = np.inf
+    space, last = ctx.space, np.inf
     for _ in range(s.max_goal_steps):
         q = tree.q[node]
         q_new, pos_err, rot_err = goals.step(q, g)
         if pos_err <= s.position_tolerance and rot_err <= s.rotation_tolerance:
             return node
+        q_new[space.indices] = np.clip(q_new[space.indices], space.lower, space.upper)
         error = pos_err + s.rotation_weight * rot_err
-        if q_new is None or error >= last or not _step_free(ctx, q, q_new, pos_err <= s.exact_approach):
+        if error >= last or not _step_free(ctx, q, q_new, pos_err <= s.exact_approach):
             tree.mark(node, g)
             return -1
         last = error
