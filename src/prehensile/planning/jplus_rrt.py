@@ -129,7 +129,7 @@ class _Tree:
 class _PoseGoals:
     """One tool toward any of the world poses ``targets`` (k, 4, 4)."""
 
-    def __init__(self, ctx: PlanningContext, solver: ChainSolver, targets: np.ndarray, s: JPlusRRTSettings) -> None:
+    def __init__(self, solver: ChainSolver, targets: np.ndarray, s: JPlusRRTSettings) -> None:
         self.solver, self.targets, self.s = solver, solver.targets(targets), s
         self.count = len(self.targets)
         self._scratch = (np.empty((len(solver.table), 3, 4)), np.empty((4, 4)), np.empty((6, solver.n)), np.empty(6))
@@ -220,7 +220,7 @@ def jplus_rrt(ctx: PlanningContext, q_start: np.ndarray, target_poses: np.ndarra
     Returns:
         :class:`PlanResult`; ``goal_index`` is the grasp reached.
     """
-    goals = _PoseGoals(ctx, _chain_solver(ctx, chain, T_tip_tcp), target_poses, settings)
+    goals = _PoseGoals(_chain_solver(ctx, chain, T_tip_tcp), target_poses, settings)
     return _grow(ctx, q_start, goals, settings, rng)
 
 
