@@ -110,9 +110,9 @@ class _Rejecting:
     def __init__(self, ctx):
         self.model, self.space, self.exact, self.is_valid = ctx.model, ctx.space, ctx.exact, ctx.is_valid
         self.spheres, self.sphere_model = ctx.spheres, ctx.sphere_model
-        self.certifier, self.certify_resolution = ctx.certifier, ctx.certify_resolution
+        self.certifier, self.certify_resolution, self.resolution = ctx.certifier, ctx.certify_resolution, ctx.resolution
 
-    def check_motions(self, qa, qb) -> np.ndarray:
+    def check_motions(self, qa, qb, resolution=None) -> np.ndarray:
         return np.zeros(len(qa), dtype=bool)
 
 
@@ -168,6 +168,8 @@ def test_bad_settings_and_path(panda):
         ElasticBandSettings(k_int=-1.0)
     with pytest.raises(PrehensileError, match="ElasticBandSettings.max_spacing must be > 0 or None, got 0"):
         ElasticBandSettings(max_spacing=0)
+    with pytest.raises(PrehensileError, match="ElasticBandSettings.certify_retries must be >= 0, got -1"):
+        ElasticBandSettings(certify_retries=-1)
     ctx = _context(panda, [])
     with pytest.raises(PrehensileError, match=r"elastic_band: path must have shape \(N >= 1, 8\)"):
         elastic_band(ctx, np.zeros((0, 8)))

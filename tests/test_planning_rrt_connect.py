@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import re
 import time
 
@@ -16,7 +17,8 @@ from prehensile.kinematics.forward import forward_kinematics
 from prehensile.model.builder import JointSpec, LinkSpec, build_model
 from prehensile.model.geometry import Box, Capsule, Geometry, Mesh, Sphere
 from prehensile.planning import (
-    AttachedObject, PlanningContext, PlanStatus, RRTConnectSearch, RRTConnectSettings, rrt_connect, shortcut,
+    AttachedObject, ElasticBandSettings, PlanningContext, PlanStatus, RRTConnectSearch, RRTConnectSettings,
+    certify_path, elastic_band, rrt_connect, shortcut,
 )
 from prehensile.clock import clock
 from prehensile.collision import sphere_kernels as SK
@@ -425,14 +427,20 @@ def test_a_start_the_balls_accept_near_an_obstacle_needs_no_escape():
     assert result.info["escapes"] == 0 and result.stats.plan_time_s < 0.5 * budget  # not spent searching an escape
 
 
+def _slot(spheres):
+    """A slot narrower than the arm's links, balls a quarter of the covering ``spheres``' size
+    (they slip through it), and a start and goal on either side of it."""
+    slot = [_box(name, [0.8, 0.0, 0.1 + side * 0.085], [0.6, 0.3, 0.1]) for name, side in (("top", 1), ("bottom", -1))]
+    thin = SphereModel(spheres.link_names, spheres.sphere_link, spheres.centers, 0.25 * spheres.radii)
+    return slot, thin, np.array([-1.2, 0.0, 0.0]), np.array([1.2, 0.0, 0.0])
+
+
 def test_path_failing_certification_is_planned_again_on_the_cover(arm):
     """Thin balls slip through a slot narrower than the links; their path fails the exact
     certification, and covering balls on the links that collided make the planner go around
     with the arm folded."""
     model, spheres = arm
-    slot = [_box(name, [0.8, 0.0, 0.1 + side * 0.085], [0.6, 0.3, 0.1]) for name, side in (("top", 1), ("bottom", -1))]
-    thin = SphereModel(spheres.link_names, spheres.sphere_link, spheres.centers, 0.25 * spheres.radii)
-    start, goal = np.array([-1.2, 0.0, 0.0]), np.array([1.2, 0.0, 0.0])
+    slot, thin, start, goal = _slot(spheres)
     alone = PlanningContext(model, slot, spheres=thin)
     assert alone.refined({"l2"}) is None and alone.check_motion(start, goal)
     failed = rrt_connect(alone, start, goal, FAST)
@@ -456,6 +464,31 @@ def test_path_failing_certification_is_planned_again_on_the_cover(arm):
         np.testing.assert_array_equal(mixed.link_spheres(link)[1], balls.link_spheres(link)[1])
     with pytest.raises(PrehensileError, match="covering"):
         PlanningContext(model, slot, spheres=thin, cover=thin)
+
+
+def test_shortcuts_and_bands_of_a_certified_path_stay_certified_on_thin_balls(arm):
+    """On balls that slip through the slot, shortening a certified path that goes around it
+    would cut through it; the certified shortcut and band are made again on the cover, or
+    (without one) return the input."""
+    model, spheres = arm
+    slot, thin, start, goal = _slot(spheres)
+    ctx = PlanningContext(model, slot, spheres=thin, cover=spheres)
+    path = rrt_connect(ctx, start, goal, FAST, np.random.default_rng(0)).path
+    assert certify_path(ctx, path).ok and ctx.check_motion(start, goal)
+    loose = shortcut(ctx, path, 0, min_gain=0.0, certify=False)
+    assert not certify_path(ctx, loose).ok  # through the slot
+    alone = PlanningContext(model, slot, spheres=thin)
+    for context in (ctx, alone):
+        for seed in range(2):
+            short = shortcut(context, path, seed, min_gain=0.0)
+            assert certify_path(ctx, short).ok and ctx.space.path_length(short) <= ctx.space.path_length(path) + 1e-9
+            np.testing.assert_array_equal(short[[0, -1]], path[[0, -1]])
+    np.testing.assert_array_equal(shortcut(alone, path, 0, retries=0), path)  # no cover, no retry: the input
+    pull = ElasticBandSettings(k_int=0.05, k_ext=0.0, max_iterations=200)
+    assert not certify_path(ctx, elastic_band(ctx, path, dataclasses.replace(pull, certify=False))).ok
+    band = elastic_band(ctx, path, pull)
+    assert certify_path(ctx, band).ok
+    np.testing.assert_array_equal(band[[0, -1]], path[[0, -1]])
 
 
 def test_a_start_only_the_thin_balls_let_through_is_an_invalid_start(arm):
@@ -530,8 +563,8 @@ def test_shortcut_never_lengthens_nor_invalidates(arm):
         assert ctx.space.path_length(short) <= length + 1e-9
         assert all(ctx.check_motion(a, b) for a, b in zip(short[:-1], short[1:]))
     for bad in (dict(iterations=-1), dict(iterations=2.5), dict(time_budget_s=-1.0), dict(time_budget_s=float("nan")),
-                dict(min_gain=-0.1), dict(min_gain=1.0)):
-        with pytest.raises(PrehensileError, match="shortcut: iterations must be a count >= 0"):
+                dict(min_gain=-0.1), dict(min_gain=1.0), dict(retries=-1), dict(retries=0.5)):
+        with pytest.raises(PrehensileError, match="shortcut: iterations and retries must be counts >= 0"):
             shortcut(ctx, detour, 0, **bad)
     with pytest.raises(PrehensileError, match="shortcut: resolution: must be a finite length"):
         shortcut(ctx, detour, 0, resolution=float("inf"))  # would let every shortcut through the wall

@@ -57,6 +57,26 @@ def test_panda_path_respects_limits_rests_at_ends_and_follows_the_polyline():
     assert np.allclose(traj.sample(traj.t[5])[0], traj.q[5])
 
 
+@pytest.mark.parametrize("acceleration", [15.0, 1e4])
+def test_sampling_between_samples_follows_the_motion_within_the_limits(acceleration):
+    """Stops at corners far shorter than the period (1e4 rad/s^2, 10 ms): sample() evaluates
+    the motion itself, whose velocity and finite differences stay within the limits; a cubic
+    through the samples would overshoot the velocity limit by a third."""
+    path, velocity = np.array([[0.0, 0.0], [0.5, 0.2], [0.6, -0.4]]), 2.175
+    traj = time_parameterize(path, velocity, acceleration, dt=0.01)
+    t = np.arange(0.0, traj.duration, 1e-5)
+    q, qd, qdd = traj.sample(t)
+    assert np.max(np.abs(qd)) <= velocity * (1 + TOL) and np.max(np.abs(qdd)) <= acceleration * (1 + TOL)
+    assert np.max(np.abs(np.diff(q, axis=0))) <= velocity * 1e-5 * (1 + TOL)
+    assert np.max(_distance_to_polyline(q, path)) < 1e-9
+    np.testing.assert_allclose(traj.sample(traj.t), (traj.q, traj.qd, traj.qdd), atol=1e-12)
+    samples_only = Trajectory(traj.t, traj.q, traj.qd, traj.qdd)  # no motion: the cubic between samples
+    assert samples_only.motion is None and traj.motion is not None
+    np.testing.assert_allclose(samples_only.sample(traj.t[3])[0], traj.q[3])
+    overshoot = np.max(np.abs(samples_only.sample(t)[1])) / velocity
+    assert (overshoot > 1.2) == (acceleration > 100)
+
+
 def test_same_input_same_output_and_json():
     _, _, path, velocity, acceleration = _panda_problem()
     names = tuple(f"j{i}" for i in range(7))

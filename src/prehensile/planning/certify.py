@@ -32,7 +32,7 @@ surfaces, as in :class:`~prehensile.collision.exact.ExactChecker`.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Sequence
+from typing import Callable, Sequence
 
 import coal
 import numpy as np
@@ -352,6 +352,50 @@ def certify_path(ctx: PlanningContext, path: np.ndarray, resolution: float | Non
         raise PrehensileError(f"certify_path: path must have shape (N >= 1, {ctx.model.dof}), got {path.shape}")
     res = ctx.certify_resolution if resolution is None else check_resolution(resolution, "certify_path: resolution")
     return ctx.certifier.certify(path, res)
+
+
+def refine_after_failure(ctx: PlanningContext, context: PlanningContext, links: frozenset, resolution: float,
+                         report: CertifyReport, last: bool) -> tuple[PlanningContext, frozenset, float]:
+    """Where to try again after a path made in ``context`` (``ctx`` with covering balls on
+    ``links``, or ``ctx`` itself) at ``resolution`` (m) failed certification (``report``):
+    (context, links, resolution) with covering balls also on the links that collided, on every
+    link with balls if ``last`` (each failure may show one more link), else, without a cover
+    (:meth:`PlanningContext.refined`) or with nothing left to cover, at half the resolution."""
+    wider = set(links) | set(report.colliding_links)
+    if last:
+        balls = ctx.sphere_model
+        wider |= {balls.link_names[i] for i in np.unique(balls.sphere_link)}
+    finer = ctx.refined(wider)
+    if finer is None or finer is context:
+        return context, links, 0.5 * resolution
+    return finer, frozenset(wider), resolution
+
+
+def rework_certified(ctx: PlanningContext, path: np.ndarray, rework: Callable[[PlanningContext, float], np.ndarray],
+                     resolution: float, retries: int) -> tuple[np.ndarray, CertifyReport, float]:
+    """The first result of ``rework(context, resolution)`` (a changed copy of ``path`` (N, dof),
+    made with the sphere checks of that context at that resolution (m)) that passes
+    :func:`certify_path`; after each failure it is made again as :func:`refine_after_failure`
+    says, at most ``retries`` times, and then ``path`` itself is returned. Balls that do not
+    cover the geometry (a spherized URDF) let a shortcut or a band pass where the geometry
+    collides; this keeps a certified path certified.
+
+    Returns:
+        (path, its :class:`CertifyReport`, time (s) spent certifying).
+    """
+    context, links, spent = ctx, frozenset(), 0.0
+    for attempt in range(retries + 1):
+        candidate = rework(context, resolution)
+        report = certify_path(context, candidate)
+        spent += report.time_s
+        if report.ok or candidate is path:
+            return candidate, report, spent
+        if attempt == retries:
+            break
+        context, links, resolution = refine_after_failure(ctx, context, links, resolution, report,
+                                                          last=attempt + 1 == retries)
+    report = certify_path(ctx, path)
+    return path, report, spent + report.time_s
 
 
 def check_valid_path(ctx: PlanningContext, path: np.ndarray, who: str) -> np.ndarray:

@@ -36,6 +36,11 @@ Choices the thesis leaves open:
   distance), since a band of few waypoints cannot bend.
 * Self-collision pairs exert no force; pairs already penetrating in the exact model (d <= 0)
   are skipped, as their witness points give no reliable direction.
+* The band is certified on the exact geometry (``certify``): balls that do not cover it (a
+  spherized URDF) let waypoints move where the geometry collides. A band that fails is made
+  again with covering balls on the links that collided (or at half the resolution), and after
+  ``certify_retries`` such tries the subdivided input path is returned
+  (:func:`~prehensile.planning.certify.rework_certified`).
 """
 
 from __future__ import annotations
@@ -46,7 +51,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from prehensile.kinematics import forward_kinematics, frame_jacobian
-from prehensile.planning.certify import check_valid_path
+from prehensile.planning.certify import check_valid_path, rework_certified
 from prehensile.settings import NON_NEGATIVE, POSITIVE, at_least, check_fields, or_none
 from prehensile.spatial import make_pose
 
@@ -69,6 +74,8 @@ class ElasticBandSettings:
         max_spacing: subdivide edges longer than this workspace-weighted distance (m,
             :meth:`ConfigurationSpace.distance`) first; None keeps the waypoints.
         damping: λ (m/rad) of the damped pseudoinverse.
+        certify: return a band that passes the exact certification, or the subdivided input.
+        certify_retries: bands made again after a failed certification.
     """
 
     k_int: float = 0.01
@@ -78,10 +85,12 @@ class ElasticBandSettings:
     max_iterations: int = 100
     max_spacing: float | None = 0.05
     damping: float = 1e-2
+    certify: bool = True
+    certify_retries: int = 3
 
     def __post_init__(self) -> None:
         check_fields(self, **dict.fromkeys(("k_int", "k_ext", "tolerance", "damping"), NON_NEGATIVE), d_min=POSITIVE,
-                     max_iterations=at_least(0), max_spacing=or_none(POSITIVE))
+                     max_iterations=at_least(0), max_spacing=or_none(POSITIVE), certify_retries=at_least(0))
 
 
 def _subdivide(ctx, path: np.ndarray, spacing: float) -> np.ndarray:
@@ -149,7 +158,8 @@ def elastic_band(ctx, path: np.ndarray, settings: ElasticBandSettings = ElasticB
 
     Returns:
         (M, dof) the band, M >= N (edges subdivided to ``settings.max_spacing``); same first
-        and last waypoints; a waypoint moves only where both its edges pass ``ctx.check_motion``.
+        and last waypoints; a waypoint moves only where both its edges pass ``ctx.check_motion``;
+        certified on the exact geometry if ``settings.certify`` (see the module doc).
         Joints outside ``ctx.space`` keep their values.
 
     Raises:
@@ -158,6 +168,19 @@ def elastic_band(ctx, path: np.ndarray, settings: ElasticBandSettings = ElasticB
     path = check_valid_path(ctx, path, "elastic_band").copy()
     if settings.max_spacing is not None:
         path = _subdivide(ctx, path, settings.max_spacing)
+
+    def band(context, edge_res: float) -> np.ndarray:
+        return _tightened(context, path, settings, edge_res)
+
+    if not settings.certify:
+        return band(ctx, ctx.resolution)
+    return rework_certified(ctx, path, band, ctx.resolution, settings.certify_retries)[0]
+
+
+def _tightened(ctx, path: np.ndarray, settings: ElasticBandSettings, resolution: float) -> np.ndarray:
+    """The band's iterations on a copy of path (M, dof), each move checked on ``ctx``'s balls at
+    ``resolution`` (m)."""
+    path = path.copy()
     space = ctx.space
     band = space.active(path)
     for iteration in range(settings.max_iterations):
@@ -173,7 +196,8 @@ def elastic_band(ctx, path: np.ndarray, settings: ElasticBandSettings = ElasticB
             rows, step = rows[size > 0], step[size > 0]
             q = path[rows].copy()
             q[:, space.indices] = np.clip(band[rows] + step, space.lower, space.upper)
-            ends = ctx.check_motions(np.concatenate((path[rows - 1], q)), np.concatenate((q, path[rows + 1])))
+            ends = ctx.check_motions(np.concatenate((path[rows - 1], q)), np.concatenate((q, path[rows + 1])),
+                                     resolution)
             moved = ends[:len(rows)] & ends[len(rows):]
             path[rows[moved]] = q[moved]
             band[rows[moved]] = q[moved][:, space.indices]

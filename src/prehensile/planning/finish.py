@@ -5,23 +5,33 @@ from __future__ import annotations
 import numpy as np
 
 from prehensile.clock import clock
-from prehensile.planning.certify import certify_path
+from prehensile.planning.certify import rework_certified
 from prehensile.planning.context import PlanningContext
 from prehensile.planning.result import PlanStatus
-from prehensile.planning.shortcut import shortcut
+from prehensile.planning.shortcut import MIN_GAIN, shortened
+
+SHORTCUT_RETRIES = 3  # shortcuts made again after one failed certification (see rework_certified)
 
 
 def finish_path(ctx: PlanningContext, path: np.ndarray, rng: np.random.Generator, shortcut_iterations: int = 100,
-                certify: bool = True) -> tuple[PlanStatus, np.ndarray, float, float]:
-    """Shortcut ``path`` (N, dof) and certify the result against the exact geometry.
+                certify: bool = True, time_budget_s: float = 0.05) -> tuple[PlanStatus, np.ndarray, float, float]:
+    """Shortcut ``path`` (N, dof; ``time_budget_s`` (s) for the random attempts of each try) and
+    certify the result against the exact geometry; a shortened path that fails is made again
+    on covering balls, then the path as found is certified
+    (:func:`~prehensile.planning.certify.rework_certified`).
 
     Returns:
         (SUCCESS or CERTIFICATION_FAILED, path (M, dof), shortcut time s, certification time s).
     """
     start = clock()
-    if shortcut_iterations > 0:
-        path = shortcut(ctx, path, rng, iterations=shortcut_iterations)
-    simplified = clock()
-    ok = certify_path(ctx, path).ok if certify else True
-    status = PlanStatus.SUCCESS if ok else PlanStatus.CERTIFICATION_FAILED
-    return status, path, simplified - start, clock() - simplified
+
+    def shorten(context: PlanningContext, edge_res: float) -> np.ndarray:
+        if shortcut_iterations == 0:
+            return path
+        return shortened(context, path, rng, shortcut_iterations, time_budget_s, edge_res, None, MIN_GAIN)
+
+    if not certify:
+        return PlanStatus.SUCCESS, shorten(ctx, ctx.resolution), clock() - start, 0.0
+    path_out, report, certify_time = rework_certified(ctx, path, shorten, ctx.resolution, SHORTCUT_RETRIES)
+    status = PlanStatus.SUCCESS if report.ok else PlanStatus.CERTIFICATION_FAILED
+    return status, path_out, clock() - start - certify_time, certify_time

@@ -44,7 +44,9 @@ from numba import njit
 
 from prehensile.clock import clock
 from prehensile.errors import PrehensileError
-from prehensile.planning.certify import ESCAPE_ATTEMPTS, CertifyReport, certified_escape, certify_path
+from prehensile.planning.certify import (
+    ESCAPE_ATTEMPTS, CertifyReport, certified_escape, certify_path, refine_after_failure,
+)
 from prehensile.planning.context import PlanningContext
 from prehensile.planning.cspace import ConfigurationSpace
 from prehensile.planning.kernels import (
@@ -414,7 +416,7 @@ class RRTConnectSearch:
         self.goals = np.zeros((0, model.dof))  # the goals as planned (ConfigurationSpace.goal_turns)
         self.goal_of = np.zeros(0, dtype=np.int64)  # row of the goals as given, per row of self.goals
         self.given = 0  # goals given
-        self.context, self.res, self.refined = ctx, ctx.resolution, set()
+        self.context, self.res, self.refined = ctx, ctx.resolution, frozenset()
         self.state = rng_state(self.rng)
         self.trees: _Trees | None = None
         self.start_status: PlanStatus | None = None
@@ -495,17 +497,10 @@ class RRTConnectSearch:
 
     def _start_over(self, report: CertifyReport, last: bool) -> None:
         """After a path failed certification: new trees, with covering balls on the links that
-        collided (:meth:`PlanningContext.refined`; for the ``last`` search on every link with
-        balls), else at half the resolution."""
-        links = self.refined | set(report.colliding_links)
-        if last:  # each failure may show one more link: do not run out of retries link by link
-            balls = self.ctx.sphere_model
-            links |= {balls.link_names[i] for i in np.unique(balls.sphere_link)}
-        finer = self.ctx.refined(links)
-        if finer is None or finer is self.context:
-            self.res *= 0.5
-        else:
-            self.context, self.refined = finer, links
+        collided (for the ``last`` search on every link with balls), else at half the resolution
+        (:func:`~prehensile.planning.certify.refine_after_failure`)."""
+        self.context, self.refined, self.res = refine_after_failure(self.ctx, self.context, self.refined, self.res,
+                                                                    report, last)
         self.trees = None
 
     def _run(self, deadline: float, iterations: int) -> tuple[int, int]:

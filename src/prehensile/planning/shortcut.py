@@ -25,7 +25,7 @@ from numba import njit
 
 from prehensile.clock import clock
 from prehensile.errors import PrehensileError
-from prehensile.planning.certify import check_valid_path
+from prehensile.planning.certify import check_valid_path, rework_certified
 from prehensile.planning.context import PlanningContext, check_resolution
 from prehensile.planning.kernels import FREE, NO_LIMIT, assign, distance, motion_free, rng_state, uniform
 from prehensile.planning.seeding import planner_rng
@@ -130,8 +130,8 @@ def simplify(path, n, marks, iterations, min_gain, first, last, rng, idx, w, res
     """Prune path[:n] in place if ``first``, make ``iterations`` random shortcut attempts (each
     checked only if it saves more than ``min_gain`` of the length), prune again if ``last``;
     returns the new count. Each shortcut adds at most one waypoint; the attempts stop early when
-    ``path`` has no row left for one more (:data:`MAX_INSERTED`); ``marks`` as for :func:`prune`; ``cum`` (rows,), qa and qb (dof,) are work arrays, ``rng``
-    the (1,) uint64 state."""
+    ``path`` has no row left for one more (:data:`MAX_INSERTED`); ``marks`` as for :func:`prune`;
+    ``cum`` (rows,), qa and qb (dof,) are work arrays, ``rng`` the (1,) uint64 state."""
     ids, checked, _ = marks
     if first:
         n = prune(path, n, marks, idx, w, res, checker, scratch, motion, counters)
@@ -178,7 +178,8 @@ def simplify(path, n, marks, iterations, min_gain, first, last, rng, idx, w, res
 
 def shortcut(ctx: PlanningContext, path: np.ndarray, rng: np.random.Generator | int | None, iterations: int = 100,
              time_budget_s: float = 0.05, resolution: float | None = None,
-             stats: np.ndarray | None = None, min_gain: float = MIN_GAIN) -> np.ndarray:
+             stats: np.ndarray | None = None, min_gain: float = MIN_GAIN, certify: bool = True,
+             retries: int = 3) -> np.ndarray:
     """A shorter path with the same ends: pruning, random shortcuts, pruning.
 
     Args:
@@ -187,29 +188,50 @@ def shortcut(ctx: PlanningContext, path: np.ndarray, rng: np.random.Generator | 
         rng: random source or seed (:func:`~prehensile.planning.seeding.planner_rng`; the same seed gives
             the same result, unless ``time_budget_s`` cuts the attempts short).
         iterations: random shortcut attempts.
-        time_budget_s: stop the random attempts after this time (s).
+        time_budget_s: stop the random attempts after this time (s), per try (see ``retries``).
         resolution: edge-check resolution (m); default ``ctx.resolution``.
         stats: optional (1,) int64 counter of clearance evaluations (incremented).
         min_gain: a random shortcut is checked only if it shortens the path by more than this
             fraction of its length (0: every one; larger values spend fewer checks on small gains).
+        certify: return a path that passes :func:`~prehensile.planning.certify.certify_path`
+            on the exact geometry, or the input path: new edges are checked on the balls, which
+            may miss parts of the geometry (a spherized URDF). A shortened path that fails is
+            made again with covering balls on the links that collided, or at half the
+            resolution (:func:`~prehensile.planning.certify.rework_certified`).
+        retries: tries after a failed certification before the input path is returned.
 
     Returns:
         (M, dof) waypoints, M <= N + min(iterations, :data:`MAX_INSERTED`), first and last equal
         to the input's.
     """
-    if not (int(iterations) == iterations and iterations >= 0 and time_budget_s >= 0 and 0 <= min_gain < 1):
-        raise PrehensileError(f"shortcut: iterations must be a count >= 0, time_budget_s >= 0 (s) and min_gain in "
-                              f"[0, 1), got {iterations}, {time_budget_s} and {min_gain}")
-    path = check_valid_path(ctx, path, "shortcut")
-    if len(path) < 3:
-        return path.copy()
+    if not (int(iterations) == iterations and iterations >= 0 and time_budget_s >= 0 and 0 <= min_gain < 1
+            and int(retries) == retries and retries >= 0):
+        raise PrehensileError(f"shortcut: iterations and retries must be counts >= 0, time_budget_s >= 0 (s) and "
+                              f"min_gain in [0, 1), got {iterations}, {retries}, {time_budget_s} and {min_gain}")
+    path = check_valid_path(ctx, path, "shortcut").copy()  # returned as it is if nothing shorter passes
     res = ctx.resolution if resolution is None else check_resolution(resolution, "shortcut: resolution")
-    buffer = np.empty((len(path) + min(int(iterations), MAX_INSERTED), ctx.model.dof))
+    rng = planner_rng(rng)
+
+    def shorten(context: PlanningContext, edge_res: float) -> np.ndarray:
+        return shortened(context, path, rng, int(iterations), time_budget_s, edge_res, stats, min_gain)
+
+    if not certify:
+        return shorten(ctx, res)
+    return rework_certified(ctx, path, shorten, res, int(retries))[0]
+
+
+def shortened(ctx: PlanningContext, path: np.ndarray, rng: np.random.Generator, iterations: int,
+              time_budget_s: float, res: float, stats: np.ndarray | None, min_gain: float) -> np.ndarray:
+    """:func:`shortcut` of the valid path (N, dof) on ``ctx``'s balls at resolution ``res`` (m),
+    without certification; ``path`` itself if it has fewer than 3 waypoints."""
+    if len(path) < 3:
+        return path
+    buffer = np.empty((len(path) + min(iterations, MAX_INSERTED), ctx.model.dof))
     buffer[:len(path)] = path
     marks = waypoint_marks(len(buffer))
     marks[0][:len(path)] = np.arange(len(path))
-    n = shortcut_rows(ctx, buffer, len(path), marks, planner_rng(rng), int(iterations), min_gain, time_budget_s, res,
-                      stats, prune_first=True)
+    n = shortcut_rows(ctx, buffer, len(path), marks, rng, iterations, min_gain, time_budget_s, res, stats,
+                      prune_first=True)
     return buffer[:n].copy()
 
 
@@ -217,10 +239,10 @@ def shortcut_rows(ctx: PlanningContext, buffer: np.ndarray, n: int, marks: tuple
                   iterations: int, min_gain: float, time_budget_s: float, res: float, stats: np.ndarray | None,
                   prune_first: bool) -> int:
     """:func:`shortcut` of the valid path buffer[:n] (n >= 3), in place; returns the new count.
-    ``buffer`` (rows > n, dof; :data:`MAX_INSERTED` more rows let every attempt run) and ``marks`` (:func:`waypoint_marks` of as many
-    rows, ids set for the first n) are overwritten. Without ``prune_first`` the path is not
-    pruned first: it has been (:func:`prune`, with these marks), and the pairs its memo holds
-    blocked are not checked again."""
+    ``buffer`` (rows > n, dof; :data:`MAX_INSERTED` more rows let every attempt run) and ``marks``
+    (:func:`waypoint_marks` of as many rows, ids set for the first n) are overwritten. Without
+    ``prune_first`` the path is not pruned first: it has been (:func:`prune`, with these marks),
+    and the pairs its memo holds blocked are not checked again."""
     work = (ctx.space.indices, ctx.space.weights, res, ctx.spheres.data, ctx.scratch, ctx.motion_arrays(res),
             np.zeros(1, dtype=np.int64) if stats is None else stats, np.empty(len(buffer)),
             np.empty(ctx.model.dof), np.empty(ctx.model.dof))

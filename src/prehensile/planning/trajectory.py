@@ -22,8 +22,9 @@ spline gets TOPP-RA (Pham & Pham 2018, `toppra`).
 
 from __future__ import annotations
 
+import functools
 import logging
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
@@ -58,6 +59,8 @@ class Trajectory:
         qd: (M, n) velocities (rad/s or m/s); zero at both ends.
         qdd: (M, n) accelerations (rad/s^2 or m/s^2); zero at the last sample (at rest).
         joint_names: names of the n joints, or () when unknown.
+        motion: the continuous motion the samples were taken from, ``t (K,) -> (q, qd, qdd)``
+            (K, n) each, or None (a trajectory given only by its samples); not compared.
     """
 
     t: np.ndarray
@@ -65,6 +68,8 @@ class Trajectory:
     qd: np.ndarray
     qdd: np.ndarray
     joint_names: tuple[str, ...] = ()
+    motion: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]] | None = field(
+        default=None, compare=False, repr=False)
 
     def __post_init__(self) -> None:
         for name in ("t", "q", "qd", "qdd"):
@@ -85,11 +90,12 @@ class Trajectory:
     def sample(self, t: float | np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Positions, velocities and accelerations at times t (*batch,) (s), clamped to the duration.
 
-        Positions and velocities come from the cubic Hermite interpolant of (q, qd) between
-        samples (so a sample pair on one straight segment interpolates on that segment),
-        accelerations are interpolated linearly. The samples meet the limits; between them
-        the interpolant's velocity can exceed them by a fraction of a percent (0.5 % seen):
-        a controller that must not should use the samples or scale the limits down.
+        With :attr:`motion` (every trajectory of :func:`time_parameterize`) the motion itself is
+        evaluated, which meets the limits between samples as at them. Without it positions and
+        velocities come from the cubic Hermite interpolant of (q, qd) between samples and
+        accelerations are interpolated linearly; where the acceleration changes within one
+        period (a stop at a corner shorter than ``dt``) that interpolant can exceed the
+        velocity limit by any amount.
 
         Returns:
             (q, qd, qdd), each (*batch, n).
@@ -98,6 +104,11 @@ class Trajectory:
         if len(self.t) == 1:
             shape = t.shape + self.q.shape[1:]
             return (np.broadcast_to(self.q[0], shape).copy(), np.zeros(shape), np.zeros(shape))
+        if self.motion is not None:
+            q, qd, qdd = (x.reshape(t.shape + self.q.shape[1:]) for x in self.motion(t.ravel()))
+            end = t >= self.duration  # at rest at the last waypoint, as the last sample
+            q[end], qd[end], qdd[end] = self.q[-1], 0.0, 0.0
+            return q, qd, qdd
         k = np.clip(np.searchsorted(self.t, t, side="right") - 1, 0, len(self.t) - 2)
         h = (self.t[k + 1] - self.t[k])[..., None]
         r = (t - self.t[k])[..., None] / h
@@ -324,7 +335,8 @@ def time_parameterize(path: np.ndarray, velocity_limits: float | np.ndarray, acc
             break
         scale *= max(more, 1.001)  # the new samples lie elsewhere: at least 0.1 % per round, so this ends
     q[0], q[-1], qd[0], qd[-1], qdd[-1] = corners[0], corners[-1], 0.0, 0.0, 0.0
-    return Trajectory(t, q, qd, qdd, tuple(joint_names))
+    motion = functools.partial(_evaluate, pieces, ss, sd / scale, piece_of, scaled_starts)
+    return Trajectory(t, q, qd, qdd, tuple(joint_names), motion)
 
 
 def _knots(pieces: list, grid: np.ndarray | None, velocity: np.ndarray, acceleration: np.ndarray):
