@@ -22,7 +22,7 @@ from prehensile.planning import (
 )
 from prehensile.clock import clock
 from prehensile.collision import sphere_kernels as SK
-from prehensile.planning.certify import certified_escape
+from prehensile.planning.certify import CertifyReport, certified_escape, refine_after_failure
 from prehensile.planning.context import ball_joint_weights
 from prehensile.planning.kernels import BLOCKED, FREE, NO_LIMIT, _scales, motion_free
 from prehensile.planning.shortcut import MAX_INSERTED, prune, shortcut_rows, waypoint_marks
@@ -441,11 +441,16 @@ def test_path_failing_certification_is_planned_again_on_the_cover(arm):
     with the arm folded."""
     model, spheres = arm
     slot, thin, start, goal = _slot(spheres)
-    alone = PlanningContext(model, slot, spheres=thin)
-    assert alone.refined({"l2"}) is None and alone.check_motion(start, goal)
-    failed = rrt_connect(alone, start, goal, FAST)
-    assert failed.status is PlanStatus.CERTIFICATION_FAILED
-    assert failed.info["refined"] == ()  # without a cover: at half the resolution each time, no link refined
+    alone = PlanningContext(model, slot, spheres=thin)  # no cover given: the thin balls padded to cover
+    assert alone.check_motion(start, goal) and alone.refined({"l2"}).sphere_model.covering is False
+    padded = rrt_connect(alone, start, goal, FAST, np.random.default_rng(0))
+    _check_result(alone, padded, start, goal)
+    assert padded.info["attempts"] >= 2 and padded.info["refined"]
+    # balls that cover already have nothing to refine: the next search runs at half the resolution
+    whole = PlanningContext(model, slot, spheres=spheres)
+    report = CertifyReport(ok=False, colliding_links=("l2",))
+    assert whole.refined({"l2"}) is None
+    assert refine_after_failure(whole, whole, frozenset(), 0.004, report, last=True) == (whole, frozenset(), 0.002)
     ctx = PlanningContext(model, slot, spheres=thin, cover=spheres)
     covered = ctx.refined({"l1", "l2", "l3"})
     assert covered.certifier is ctx.certifier and not covered.check_motion(start, goal)
@@ -468,8 +473,8 @@ def test_path_failing_certification_is_planned_again_on_the_cover(arm):
 
 def test_shortcuts_and_bands_of_a_certified_path_stay_certified_on_thin_balls(arm):
     """On balls that slip through the slot, shortening a certified path that goes around it
-    would cut through it; the certified shortcut and band are made again on the cover, or
-    (without one) return the input."""
+    would cut through it; the certified shortcut and band are made again on the cover (given,
+    or the thin balls padded), or return the input."""
     model, spheres = arm
     slot, thin, start, goal = _slot(spheres)
     ctx = PlanningContext(model, slot, spheres=thin, cover=spheres)
@@ -483,7 +488,7 @@ def test_shortcuts_and_bands_of_a_certified_path_stay_certified_on_thin_balls(ar
             short = shortcut(context, path, seed, min_gain=0.0)
             assert certify_path(ctx, short).ok and ctx.space.path_length(short) <= ctx.space.path_length(path) + 1e-9
             np.testing.assert_array_equal(short[[0, -1]], path[[0, -1]])
-    np.testing.assert_array_equal(shortcut(alone, path, 0, retries=0), path)  # no cover, no retry: the input
+    np.testing.assert_array_equal(shortcut(alone, path, 0, retries=0), path)  # no retry: the input
     pull = ElasticBandSettings(k_int=0.05, k_ext=0.0, max_iterations=200)
     assert not certify_path(ctx, elastic_band(ctx, path, dataclasses.replace(pull, certify=False))).ok
     band = elastic_band(ctx, path, pull)

@@ -29,7 +29,7 @@ from prehensile.collision import sphere_kernels as SK
 from prehensile.collision.acm import allowed_collision_matrix, rigid_bodies
 from prehensile.collision.sphere_checker import SphereChecker, frames_and_groups
 from prehensile.collision.sphere_fit import cover_geometries
-from prehensile.collision.spheres import SphereModel, generate_sphere_model, replace_link_balls
+from prehensile.collision.spheres import SphereModel, generate_sphere_model, pad_sphere_model, replace_link_balls
 from prehensile.collision.world import SHAPE_SIZES, Obstacle, check_obstacles, positive_size
 from prehensile.errors import PrehensileError
 from prehensile.model.geometry import Geometry, Shape
@@ -248,7 +248,8 @@ class PlanningContext:
             max_radius=0.04)``: the default cover of a big box is coarse.
         cover: balls covering the geometry (``covering``), for planning again when ``spheres``
             does not cover it (a spherized URDF) and a path fails the exact certification
-            (see :meth:`refined`).
+            (see :meth:`refined`); default ``spheres`` padded to cover it
+            (:func:`~prehensile.collision.spheres.pad_sphere_model`, cached on disk).
         acm: (L, L) allowed-collision matrix of ``model``; default from the model (SRDF).
         attached: grasped objects moving with their links.
         resolution: edge-check resolution (m): where the sphere clearance does not prove a
@@ -288,6 +289,8 @@ class PlanningContext:
         self.T_world_base = np.eye(4) if T_world_base is None else check_one_pose(T_world_base,
                                                                                   "PlanningContext: T_world_base")
         base_spheres = generate_sphere_model(model) if spheres is None else spheres
+        if cover is None and not base_spheres.covering:
+            cover = pad_sphere_model(base_spheres, model)
         base_acm = allowed_collision_matrix(model) if acm is None else np.asarray(acm, dtype=bool)
         self.collision_model, self.sphere_model, self.acm = attach_objects(model, base_spheres, base_acm, self.attached)
         centers, radii = self.sphere_model.link_bounds()
@@ -404,7 +407,8 @@ class PlanningContext:
 
     def refined(self, links: set[str]) -> PlanningContext | None:
         """The same query with the ``cover`` balls on ``links`` (names) and this context's
-        balls elsewhere (built once per link set); None without a cover.
+        balls elsewhere (built once per link set); None if this context's balls cover the
+        geometry already.
 
         Planners turn to it when a path found on balls that do not cover the geometry fails the
         exact certification on those links: only where the balls proved wrong do they get the
