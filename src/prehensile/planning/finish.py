@@ -11,14 +11,14 @@ from prehensile.planning.result import PlanStatus
 from prehensile.planning.shortcut import MIN_GAIN, shortened
 
 SHORTCUT_RETRIES = 3  # shortcuts made again after one failed certification (see rework_certified)
+SHORTCUT_TIME_S = 0.05  # s of random shortcut attempts per try
 
 
 def finish_path(ctx: PlanningContext, path: np.ndarray, rng: np.random.Generator, shortcut_iterations: int = 100,
-                certify: bool = True, time_budget_s: float = 0.05) -> tuple[PlanStatus, np.ndarray, float, float]:
-    """Shortcut ``path`` (N, dof; ``time_budget_s`` (s) for the random attempts of each try) and
-    certify the result against the exact geometry; a shortened path that fails is made again
-    on covering balls, then the path as found is certified
-    (:func:`~prehensile.planning.certify.rework_certified`).
+                certify: bool = True) -> tuple[PlanStatus, np.ndarray, float, float]:
+    """Shortcut ``path`` (N, dof) and certify the result against the exact geometry; a
+    shortened path that fails is made again on covering balls, then the path as found is
+    certified (:func:`~prehensile.planning.certify.rework_certified`).
 
     Returns:
         (SUCCESS or CERTIFICATION_FAILED, path (M, dof), shortcut time s, certification time s).
@@ -28,7 +28,7 @@ def finish_path(ctx: PlanningContext, path: np.ndarray, rng: np.random.Generator
     def shorten(context: PlanningContext, edge_res: float) -> np.ndarray:
         if shortcut_iterations == 0:
             return path
-        return shortened(context, path, rng, shortcut_iterations, time_budget_s, edge_res, None, MIN_GAIN)
+        return shortened(context, path, rng, shortcut_iterations, SHORTCUT_TIME_S, edge_res, None, MIN_GAIN)
 
     if not certify:
         return PlanStatus.SUCCESS, shorten(ctx, ctx.resolution), clock() - start, 0.0

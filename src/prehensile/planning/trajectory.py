@@ -91,7 +91,9 @@ class Trajectory:
         """Positions, velocities and accelerations at times t (*batch,) (s), clamped to the duration.
 
         With :attr:`motion` (every trajectory of :func:`time_parameterize`) the motion itself is
-        evaluated, which meets the limits between samples as at them. Without it positions and
+        evaluated, which meets the limits between samples too (a straight segment exactly, a
+        blended spline where the profile was checked: five times per interval of its grid and
+        at every sample). Without it positions and
         velocities come from the cubic Hermite interpolant of (q, qd) between samples and
         accelerations are interpolated linearly; where the acceleration changes within one
         period (a stop at a corner shorter than ``dt``) that interpolant can exceed the
