@@ -31,6 +31,7 @@ surfaces, as in :class:`~prehensile.collision.exact.ExactChecker`.
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
 from typing import Callable, Sequence
 
@@ -48,6 +49,8 @@ from prehensile.errors import PrehensileError
 from prehensile.kinematics.kernels import fk_into
 from prehensile.model.robot_model import RobotModel
 from prehensile.planning.context import PlanningContext, check_resolution, motion_weights
+
+log = logging.getLogger(__name__)
 
 _TOLERANCE = 1e-6  # m taken off every coal distance (GJK converges to about this)
 ESCAPE_ATTEMPTS = 64  # escape directions tried by default (drawn this many at a time until a deadline)
@@ -394,6 +397,7 @@ def rework_certified(ctx: PlanningContext, path: np.ndarray, rework: Callable[[P
             break
         context, links, resolution = refine_after_failure(ctx, context, links, resolution, report,
                                                           last=attempt + 1 == retries)
+    log.info("none of %d reworked paths passed the exact certification; keeping the path as it was", retries + 1)
     report = certify_path(ctx, path)
     return path, report, spent + report.time_s
 
