@@ -288,7 +288,7 @@ def test_settings_name_valid_choices():
     for budget in (0, float("inf"), float("nan")):
         with pytest.raises(PrehensileError, match="MBMSettings.time_budget_s must be > 0 and finite"):
             MBMSettings(time_budget_s=budget)
-    with pytest.raises(PrehensileError, match="MBMSettings.limit must be >= 0, got -1"):
+    with pytest.raises(PrehensileError, match="MBMSettings.limit must be an integer >= 0, got -1"):
         MBMSettings(limit=-1)
 
 

@@ -204,7 +204,7 @@ def test_bad_input():
         fabrik(model, "tail", [0.1, 0.1, 0.1])
     with pytest.raises(PrehensileError, match="FabrikSettings.tolerance must be > 0, got 0.0"):
         FabrikSettings(tolerance=0.0)
-    with pytest.raises(PrehensileError, match="FabrikSettings.max_iterations must be >= 1, got 0"):
+    with pytest.raises(PrehensileError, match="FabrikSettings.max_iterations must be an integer >= 1, got 0"):
         FabrikSettings(max_iterations=0)
 
 

@@ -68,7 +68,7 @@ def test_same_seed_same_result_and_bad_arguments(armar):
     assert timeout.status is IKStatus.TIMEOUT and 0.02 <= timeout.time_s < 0.02 + 0.2
     capped = solve_ik_hybrid([left], [far], "Torso", rng=0, settings=HybridIKSettings(time_budget_s=60, max_samples=3))
     assert capped.status is IKStatus.NOT_CONVERGED and capped.restarts == 2  # samples before the last
-    with pytest.raises(PrehensileError, match="HybridIKSettings.max_samples must be >= 1 or None, got 0"):
+    with pytest.raises(PrehensileError, match="HybridIKSettings.max_samples must be an integer >= 1 or None, got 0"):
         HybridIKSettings(max_samples=0)
     region = ObjectRegion((0.0, 0.0, 8.9), (0.1, 0.1, 9.0))  # out of reach
     result, _ = solve_regrasp_ik([left, right], [np.eye(4)[None]] * 2, region, "Torso", rng=0, time_budget_s=60,

@@ -226,7 +226,8 @@ def test_bad_settings_and_chains_raise():
                          ({"position_tolerance": np.inf}, "position_tolerance must be positive and finite")]:
         with pytest.raises(PrehensileError, match=message):
             JacobianIKSettings(**bad)
-    with pytest.raises(PrehensileError, match="CompleteIKSettings.max_restarts must be >= 0 or None, got -1"):
+    with pytest.raises(PrehensileError,
+                       match="CompleteIKSettings.max_restarts must be an integer >= 0 or None, got -1"):
         CompleteIKSettings(max_restarts=-1)
     with pytest.raises(PrehensileError, match=r"q_seed: expected one configuration \(8,\)"):
         ChainSolver(model, "arm").solve(ChainSolver(model, "arm").tool_pose(model.neutral_configuration()),

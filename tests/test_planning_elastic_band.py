@@ -168,7 +168,7 @@ def test_bad_settings_and_path(panda):
         ElasticBandSettings(k_int=-1.0)
     with pytest.raises(PrehensileError, match="ElasticBandSettings.max_spacing must be > 0 or None, got 0"):
         ElasticBandSettings(max_spacing=0)
-    with pytest.raises(PrehensileError, match="ElasticBandSettings.certify_retries must be >= 0, got -1"):
+    with pytest.raises(PrehensileError, match="ElasticBandSettings.certify_retries must be an integer >= 0, got -1"):
         ElasticBandSettings(certify_retries=-1)
     ctx = _context(panda, [])
     with pytest.raises(PrehensileError, match=r"elastic_band: path must have shape \(N >= 1, 8\)"):

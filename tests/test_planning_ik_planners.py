@@ -199,11 +199,12 @@ def test_settings_are_validated():
     # an infinite budget would search forever for an unreachable pose, or fail in the inner search
     for bad, valid in (({"time_budget_s": -1.0}, "> 0 and finite, got -1.0"),
                        ({"time_budget_s": np.inf}, "> 0 and finite, got inf"),
-                       ({"ik_attempts": 0}, ">= 1, got 0"), ({"first_round_iterations": 0}, ">= 1")):
+                       ({"ik_attempts": 0}, "an integer >= 1, got 0"),
+                       ({"first_round_iterations": 0}, "an integer >= 1")):
         with pytest.raises(PrehensileError, match=f"IKRRTSettings.{next(iter(bad))} must be {valid}"):
             IKRRTSettings(**bad)
     for bad, valid in (({"goal_probability": 2.0}, r"in \[0, 1\], got 2.0"), ({"time_budget_s": 0.0}, "> 0"),
-                       ({"time_budget_s": np.inf}, "> 0 and finite"), ({"max_nodes": 0}, ">= 2"),
+                       ({"time_budget_s": np.inf}, "> 0 and finite"), ({"max_nodes": 0}, "an integer >= 2"),
                        ({"step": np.nan}, "> 0, got nan")):
         with pytest.raises(PrehensileError, match=f"JPlusRRTSettings.{next(iter(bad))} must be {valid}"):
             JPlusRRTSettings(**bad)

@@ -341,7 +341,8 @@ def test_search_resumes_its_trees_and_takes_goals_added_later(arm):
             search.solve(budget)
     for bad, message in ((dict(time_budget_s=float("inf")), "time_budget_s must be > 0 and finite, got inf"),
                          (dict(shortcut_min_gain=1.0), r"shortcut_min_gain must be in \[0, 1\), got 1.0"),
-                         (dict(eager_checks="3"), "eager_checks must be >= 1, got '3'")):
+                         (dict(eager_checks="3"), "eager_checks must be an integer >= 1, got '3'"),
+                         (dict(max_nodes=2.5), "max_nodes must be an integer >= 2, got 2.5")):
         with pytest.raises(PrehensileError, match=f"RRTConnectSettings.{message}"):  # not later, in solve
             RRTConnectSettings(**bad)
     result = search.solve(2.0)

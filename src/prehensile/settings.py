@@ -20,8 +20,8 @@ UNIT_INTERVAL: Rule = (lambda v: 0 <= v <= 1, "in [0, 1]")
 
 
 def at_least(n: int) -> Rule:
-    """An integer count of at least ``n``."""
-    return (lambda v: v >= n, f">= {n}")
+    """An integer count of at least ``n`` (a whole float such as 1e5 counts)."""
+    return (lambda v: v >= n and float(v).is_integer(), f"an integer >= {n}")
 
 
 def or_none(rule: Rule) -> Rule:
