@@ -220,10 +220,13 @@ def test_bad_settings_and_chains_raise():
     model = robots.load("panda")
     with pytest.raises(PrehensileError, match="dls"):
         JacobianIKSettings(method="newton")
-    for bad, message in [({"damping": -1.0}, "damping must be >= 0"), ({"damping": np.nan}, "damping"),
-                         ({"max_iterations": -5}, "max_iterations must be >= 1"),
-                         ({"stall_iterations": 0}, "stall_iterations must be >= 1"),
-                         ({"position_tolerance": np.inf}, "position_tolerance must be positive and finite")]:
+    for bad, message in [({"damping": -1.0}, "damping must be >= 0 and finite"), ({"damping": np.nan}, "damping"),
+                         ({"max_iterations": -5}, "max_iterations must be an integer >= 1 or None"),
+                         ({"max_iterations": 2.5}, "max_iterations must be an integer >= 1 or None, got 2.5"),
+                         ({"stall_iterations": 0}, "stall_iterations must be an integer >= 1"),
+                         ({"position_tolerance": np.inf}, "position_tolerance must be > 0 and finite"),
+                         ({"weights": (1.0, 1.0, 1.0)}, "weights must be 6 finite numbers >= 0"),
+                         ({"weights": (1.0,) * 5 + (np.nan,)}, "weights must be 6")]:
         with pytest.raises(PrehensileError, match=message):
             JacobianIKSettings(**bad)
     with pytest.raises(PrehensileError,

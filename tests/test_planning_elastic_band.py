@@ -162,9 +162,11 @@ def test_a_colliding_input_path_is_refused(panda):
 
 
 def test_bad_settings_and_path(panda):
-    with pytest.raises(PrehensileError, match="ElasticBandSettings.d_min must be > 0, got 0.0"):
+    with pytest.raises(PrehensileError, match="ElasticBandSettings.d_min must be > 0 and finite, got 0.0"):
         ElasticBandSettings(d_min=0.0)
-    with pytest.raises(PrehensileError, match="ElasticBandSettings.k_int must be >= 0, got -1.0"):
+    with pytest.raises(PrehensileError, match="ElasticBandSettings.d_min must be > 0 and finite, got inf"):
+        ElasticBandSettings(d_min=np.inf)  # every pair would push with an infinite force
+    with pytest.raises(PrehensileError, match="ElasticBandSettings.k_int must be >= 0 and finite, got -1.0"):
         ElasticBandSettings(k_int=-1.0)
     with pytest.raises(PrehensileError, match="ElasticBandSettings.max_spacing must be > 0 or None, got 0"):
         ElasticBandSettings(max_spacing=0)

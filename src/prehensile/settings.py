@@ -16,6 +16,7 @@ Rule = tuple[Callable[[Any], bool], str]  # (test of a value, the valid values i
 POSITIVE: Rule = (lambda v: v > 0, "> 0")
 FINITE_POSITIVE: Rule = (lambda v: 0 < v < inf, "> 0 and finite")
 NON_NEGATIVE: Rule = (lambda v: v >= 0, ">= 0")
+FINITE_NON_NEGATIVE: Rule = (lambda v: 0 <= v < inf, ">= 0 and finite")
 UNIT_INTERVAL: Rule = (lambda v: 0 <= v <= 1, "in [0, 1]")
 
 

@@ -32,6 +32,7 @@ from prehensile.ik.result import IKResult, IKStatus, check_target_poses, check_t
 from prehensile.kinematics.forward import link_pose
 from prehensile.model.builder import resolve_chain
 from prehensile.model.robot_model import Chain, RobotModel
+from prehensile.settings import FINITE_NON_NEGATIVE, FINITE_POSITIVE, at_least, check_fields, or_none
 
 METHODS = {"transpose": kernels.TRANSPOSE, "pinv": kernels.PSEUDOINVERSE, "dls": kernels.DAMPED}
 
@@ -73,16 +74,11 @@ class JacobianIKSettings:
     def __post_init__(self) -> None:
         if self.method not in METHODS:
             raise PrehensileError(f"IK method '{self.method}' is unknown; choose one of {', '.join(METHODS)}")
-        if len(self.weights) != 6 or any(w < 0 or not np.isfinite(w) for w in self.weights):
-            raise PrehensileError(f"IK weights: expected 6 finite non-negative numbers, got {self.weights}")
-        for name in ("position_tolerance", "rotation_tolerance", "max_step_position", "max_step_rotation", "gain"):
-            if not 0 < getattr(self, name) < np.inf:
-                raise PrehensileError(f"IK setting {name} must be positive and finite, got {getattr(self, name)}")
-        if not 0 <= self.damping < np.inf:
-            raise PrehensileError(f"IK setting damping must be >= 0 and finite (m), got {self.damping}")
-        for name in ("max_iterations", "stall_iterations"):
-            if getattr(self, name) is not None and not getattr(self, name) >= 1:
-                raise PrehensileError(f"IK setting {name} must be >= 1 or None, got {getattr(self, name)}")
+        check_fields(self, **dict.fromkeys(("position_tolerance", "rotation_tolerance", "max_step_position",
+                                            "max_step_rotation", "gain"), FINITE_POSITIVE),
+                     weights=(lambda w: len(w) == 6 and all(0 <= x < np.inf for x in w), "6 finite numbers >= 0"),
+                     damping=FINITE_NON_NEGATIVE, max_iterations=or_none(at_least(1)),
+                     stall_iterations=or_none(at_least(1)))
 
     @property
     def iteration_cap(self) -> int:

@@ -52,7 +52,9 @@ import numpy as np
 
 from prehensile.kinematics import forward_kinematics, frame_jacobian
 from prehensile.planning.certify import check_valid_path, rework_certified
-from prehensile.settings import NON_NEGATIVE, POSITIVE, at_least, check_fields, or_none
+from prehensile.settings import (
+    FINITE_NON_NEGATIVE, FINITE_POSITIVE, NON_NEGATIVE, POSITIVE, at_least, check_fields, or_none,
+)
 from prehensile.spatial import make_pose
 
 log = logging.getLogger(__name__)
@@ -89,8 +91,9 @@ class ElasticBandSettings:
     certify_retries: int = 3
 
     def __post_init__(self) -> None:
-        check_fields(self, **dict.fromkeys(("k_int", "k_ext", "tolerance", "damping"), NON_NEGATIVE), d_min=POSITIVE,
-                     max_iterations=at_least(0), max_spacing=or_none(POSITIVE), certify_retries=at_least(0))
+        check_fields(self, **dict.fromkeys(("k_int", "k_ext", "damping"), FINITE_NON_NEGATIVE), tolerance=NON_NEGATIVE,
+                     d_min=FINITE_POSITIVE, max_iterations=at_least(0), max_spacing=or_none(POSITIVE),
+                     certify_retries=at_least(0))
 
 
 def _subdivide(ctx, path: np.ndarray, spacing: float) -> np.ndarray:
