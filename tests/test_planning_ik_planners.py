@@ -13,9 +13,9 @@ from prehensile.errors import PrehensileError
 from prehensile.ik import ChainSolver, ObjectRegion
 from prehensile.model.geometry import Box, Cylinder
 from prehensile.planning import PlanningContext, PlanStatus, certify_path
-from prehensile.planning.ik_rrt import (IKRRTSettings, dual_arm_sampler, grasp_sampler, ik_rrt, multi_eef_rrt,
-                                        regrasp_sampler)
-from prehensile.planning.jplus_rrt import JPlusRRTSettings, jplus_rrt
+from prehensile.planning.ik_rrt import (IKRRTSettings, _Search, dual_arm_sampler, grasp_sampler, ik_rrt,
+                                        multi_eef_rrt, regrasp_sampler)
+from prehensile.planning.jplus_rrt import JPlusRRTSettings, jplus_rrt, regrasp_jplus_rrt
 from prehensile.spatial import invert, make_pose, rotation_error
 
 
@@ -159,11 +159,51 @@ def test_solvers_placed_elsewhere_than_the_robot_are_errors(panda_scene):
         grasp_sampler(ctx, fingers, goals, q0)
 
 
+def test_a_sampler_whose_q_ref_moves_unplanned_joints_is_refused_up_front(panda_scene):
+    ctx, solver, q0, goals = panda_scene
+    q_ref = q0.copy()
+    q_ref[7] = 0.035  # the fingers differ from the start's; the context plans the arm only
+    with pytest.raises(PrehensileError, match=r"grasp_sampler: q_ref and the start differ in joints the context does "
+                                              r"not plan \(panda_finger_joint1; planned: panda_joint1"):
+        ik_rrt(ctx, q0, grasp_sampler(ctx, solver, goals, q_ref), rng=0)
+    with pytest.raises(PrehensileError, match="multi_eef_rrt: the sampler of 'left' is a function, not a GoalSampler"):
+        multi_eef_rrt(ctx, q0, {"left": lambda rng, call, attempts, budget: (None, {})})
+
+
 def test_a_sampler_takes_q_ref_as_a_list(panda_scene):
     ctx, solver, q0, goals = panda_scene
     result = ik_rrt(ctx, q0, grasp_sampler(ctx, solver, goals, q0.tolist()), rng=0)
     assert result.status is PlanStatus.SUCCESS
     assert_valid_path(ctx, result.path, q0)
+
+
+def test_multi_eef_rrt_statistics_are_totals_over_the_hands(monkeypatch):
+    """Two hands turning panda_joint1 to a goal behind a wall: both search until the budget ends."""
+    model = robots.load("panda")
+    start = np.array([-0.9, 0.3, 0.0, -1.8, 0.0, 2.1, 0.785, 0.02])
+    wall = Obstacle("wall", Box((0.3, 0.06, 0.8)), make_pose(position=[0.45, 0.0, 0.4]))
+    ctx = PlanningContext(model, [wall], joints=["panda_joint1"], q_ref=start)
+    solver = ChainSolver(model, base="panda_link0", tip="panda_link1")
+    goal = start.copy()
+    goal[0] = 0.9
+    target = solver.tool_pose(goal)[None]
+    searches = []
+    step = _Search.step
+
+    def recorded_step(search, *args):
+        searches.append(search)
+        return step(search, *args)
+
+    monkeypatch.setattr(_Search, "step", recorded_step)
+    samplers = {hand: grasp_sampler(ctx, solver, target, start) for hand in ("a", "b")}
+    result = multi_eef_rrt(ctx, start, samplers, IKRRTSettings(time_budget_s=0.3), rng=0)
+    assert result.status is PlanStatus.TIMEOUT
+    hands = set(searches)
+    assert len(hands) == 2 and all(s.iterations > 0 and s.infos for s in hands)
+    assert result.stats.iterations == sum(s.iterations for s in hands)
+    assert result.stats.collision_checks == sum(s.checks for s in hands)
+    assert result.stats.nodes == sum(s.nodes for s in hands)
+    assert result.stats.ik_solutions == sum(len(s.infos) for s in hands)
 
 
 def test_multi_eef_rrt_names_missing_samplers_and_contexts(panda_scene):
@@ -266,6 +306,21 @@ def test_bimanual_and_hand_over_ik_rrt(armar):
     assert_valid_path(ctx, result.path, q0)
     T_object = result.info["goal"]["T_world_object"]
     np.testing.assert_allclose(right.tool_pose(result.path[-1])[:3, 3], (T_object @ grasps[1][0])[:3, 3], atol=1e-4)
+
+
+def test_free_joints_the_context_does_not_plan_are_refused_up_front(armar):
+    model, left, right, spheres = armar
+    arms_only = [*left.chain.joint_names, *right.chain.joint_names]
+    ctx = PlanningContext(model, [], joints=arms_only, spheres=spheres)
+    q0 = model.neutral_configuration()
+    poses = [left.tool_pose(q0)[None], right.tool_pose(q0)[None]]
+    message = r"{}: the free joints Hip_\w+, Hip_\w+, Hip_\w+ are not planned by the context \(planned: "
+    with pytest.raises(PrehensileError, match=message.format("dual_arm_sampler")):
+        dual_arm_sampler(ctx, [left, right], poses, q0, free="Torso")
+    with pytest.raises(PrehensileError, match=message.format("regrasp_sampler")):
+        regrasp_sampler(ctx, [left, right], [np.eye(4)[None], np.eye(4)[None]], None, q0, free="Torso")
+    with pytest.raises(PrehensileError, match=message.format(r"regrasp J\+-RRT")):
+        regrasp_jplus_rrt(ctx, q0, [left, right], [np.eye(4)[None], np.eye(4)[None]], free="Torso")
 
 
 def test_multi_eef_rrt_picks_the_free_hand(armar):

@@ -32,6 +32,7 @@ from prehensile.collision.sphere_fit import cover_geometries
 from prehensile.collision.spheres import SphereModel, generate_sphere_model, pad_sphere_model, replace_link_balls
 from prehensile.collision.world import SHAPE_SIZES, Obstacle, check_obstacles, positive_size
 from prehensile.errors import PrehensileError
+from prehensile.ik.jacobian import free_joint_indices
 from prehensile.model.geometry import Geometry, Shape
 from prehensile.model.robot_model import FIXED, PRISMATIC, REVOLUTE, RobotModel
 from prehensile.planning.cspace import ConfigurationSpace
@@ -450,15 +451,17 @@ class PlanningContext:
         q = self.model.check_one(q)
         return bool(self.is_valid(q) or self.model.within_limits(q) and self.static_free(q) and self.exact.is_free(q))
 
-    def check_solvers(self, solvers: Sequence, who: str, q_ref: np.ndarray | None = None) -> np.ndarray | None:
+    def check_solvers(self, solvers: Sequence, who: str, q_ref: np.ndarray | None = None,
+                      free: Sequence[str] | str | None = None) -> np.ndarray | None:
         """Raise PrehensileError unless every IK solver (``ChainSolver``) places its chain's root
         where this context places the robot (``T_world_base``; its poses would otherwise be
-        reached in the wrong place) and moves only joints the context plans (its solutions
-        would otherwise be goals the planner refuses). ``who`` names the caller in the message.
+        reached in the wrong place) and it and the ``free`` joints solved with it (a chain name,
+        joint names or None) move only joints the context plans (its solutions would otherwise
+        be goals the planner refuses). ``who`` names the caller in the message.
         Returns ``q_ref`` checked as one configuration (dof,) (None if not given)."""
-        planned = set(self.space.indices.tolist())
+        planned, names = set(self.space.indices.tolist()), self.model.joint_names
         for solver in solvers:
-            unplanned = [self.model.joint_names[i] for i in solver.var_q if i not in planned]
+            unplanned = [names[i] for i in solver.var_q if i not in planned]
             if unplanned:
                 raise PrehensileError(f"{who}: chain '{solver.chain.name}' moves {', '.join(unplanned)}, which the "
                                       f"context does not plan (planned: {', '.join(self.space.joint_names)})")
@@ -467,6 +470,10 @@ class PlanningContext:
                                       f"{np.round(solver.T_world_root[:3], 4).tolist()}, not the context's "
                                       f"T_world_base {np.round(self.T_world_base[:3], 4).tolist()}; "
                                       "build it with ChainSolver(..., T_world_root=ctx.T_world_base)")
+        unplanned = [names[i] for i in free_joint_indices(self.model, solvers, free) if i not in planned]
+        if unplanned:
+            raise PrehensileError(f"{who}: the free joints {', '.join(unplanned)} are not planned by the context "
+                                  f"(planned: {', '.join(self.space.joint_names)})")
         if q_ref is None:
             return None
         return self.model.check_one(q_ref, f"{who}: q_ref")

@@ -40,17 +40,45 @@ from prehensile.planning.seeding import planner_rng
 from prehensile.settings import FINITE_POSITIVE, POSITIVE, at_least, check_fields
 from prehensile.spatial.transforms import invert
 
-# a goal sampler draws one goal configuration (dof,) or None, and what it reached (grasp
-# indices, object pose, ...), from (rng, call, attempts, budget): the call's number in the
-# query (0 first), a fixed amount of IK work (its unit is the sampler's) and a time limit
-# (s); "grasp" is the planners' ``goal_index``: the target pose reached, or for two hands the
-# pair of poses reached as one index in C order (:func:`_pair_info`, as in J+-RRT).
-# Goals must be valid (PlanningContext.is_valid); the one-arm sampler also keeps goals only
-# the conservative balls reject (is_usable_end: a hand around an object), the two-hand
-# samplers do not: their hands are close in every solution, and each such goal would need a
-# certified escape of both arms, dearer than another IK sample (Regrasp-IK-RRT on ARMAR-III
-# took up to 3.7x as long).
-GoalSampler = Callable[[np.random.Generator, int, int, float], tuple[np.ndarray | None, dict]]
+@dataclass(frozen=True, eq=False)
+class GoalSampler:
+    """Goal configurations for :func:`ik_rrt`, drawn by an IK during planning.
+
+    ``draw(rng, call, attempts, budget)`` returns one goal configuration (dof,) or None, and
+    what it reached (grasp indices, object pose, ...): ``call`` is its number in the query (0
+    first), ``attempts`` a fixed amount of IK work (its unit is the sampler's) and ``budget``
+    a time limit (s). ``info["grasp"]`` is the planners' ``goal_index``: the target pose
+    reached, or for two hands the pair of poses reached as one index in C order
+    (:func:`_pair_info`, as in J+-RRT). Goals must be valid (``PlanningContext.is_valid``);
+    the one-arm sampler also keeps goals only the conservative balls reject (``is_usable_end``:
+    a hand around an object), the two-hand samplers do not: their hands are close in every
+    solution, and each such goal would need a certified escape of both arms, dearer than
+    another IK sample (Regrasp-IK-RRT on ARMAR-III took up to 3.7x as long).
+
+    Attributes:
+        who: the sampler's name in error messages.
+        q_ref: (dof,) the values its goals keep in the joints the IK does not move.
+        draw: the sampling function.
+    """
+
+    who: str
+    q_ref: np.ndarray
+    draw: Callable[[np.random.Generator, int, int, float], tuple[np.ndarray | None, dict]]
+
+    def __call__(self, rng: np.random.Generator, call: int, attempts: int, budget: float
+                 ) -> tuple[np.ndarray | None, dict]:
+        return self.draw(rng, call, attempts, budget)
+
+    def check_start(self, ctx: PlanningContext, q_start: np.ndarray) -> None:
+        """Raise PrehensileError if ``q_ref`` and the start differ in joints ``ctx`` does not
+        plan: every goal would move them, and the planner refuses such goals."""
+        q_start = ctx.model.check_one(q_start, f"{self.who}: q_start")
+        fixed = ctx.space.fixed
+        differ = fixed[np.abs(self.q_ref[fixed] - q_start[fixed]) > 1e-9]
+        if differ.size:
+            raise PrehensileError(f"{self.who}: q_ref and the start differ in joints the context does not plan "
+                                  f"({', '.join(ctx.model.joint_names[i] for i in differ)}; planned: "
+                                  f"{', '.join(ctx.space.joint_names)}): its goals would move them")
 
 
 @dataclass(frozen=True)
@@ -94,7 +122,7 @@ class _Search:
         self.calls = 0  # goal samples drawn
         self.round_iterations = settings.first_round_iterations
         self.iterations = self.nodes = self.checks = 0
-        self.search_s = self.simplify_s = self.certify_s = 0.0
+        self.simplify_s = self.certify_s = 0.0
 
     def step(self, rng: np.random.Generator, deadline: float) -> PlanResult | None:
         """Sample one goal, then search a round; a finished PlanResult, or None to go on."""
@@ -113,19 +141,23 @@ class _Search:
         self.iterations += s.iterations
         self.nodes = max(self.nodes, s.nodes)
         self.checks += s.collision_checks
-        self.search_s += s.plan_time_s
         self.simplify_s += s.simplify_time_s
         self.certify_s += s.certify_time_s
         if result.status in (PlanStatus.TIMEOUT, PlanStatus.CERTIFICATION_FAILED, PlanStatus.INVALID_GOAL):
             return None
         goal = self.infos[result.goal_index] if result.success else {}
-        return PlanResult(result.status, result.path, self.stats(), goal.get("grasp", -1),
+        return PlanResult(result.status, result.path, PlanStats(), goal.get("grasp", -1),
                           info={"goal": goal, "goal_configuration": result.goal_index,
                                 "goal_configurations": len(self.infos)})
 
-    def stats(self, total_s: float | None = None) -> PlanStats:
-        return PlanStats(self.iterations, self.nodes, self.checks, len(self.infos),
-                         self.search_s if total_s is None else total_s, self.simplify_s, self.certify_s)
+
+def _total_stats(searches: Sequence[_Search], elapsed_s: float) -> PlanStats:
+    """Statistics of a query summed over its searches (one per hand); the search time is the
+    time ``elapsed_s`` (s) less simplification and certification (so it includes IK sampling)."""
+    simplify_s, certify_s = sum(s.simplify_s for s in searches), sum(s.certify_s for s in searches)
+    return PlanStats(sum(s.iterations for s in searches), sum(s.nodes for s in searches),
+                     sum(s.checks for s in searches), sum(len(s.infos) for s in searches),
+                     elapsed_s - simplify_s - certify_s, simplify_s, certify_s)
 
 
 def ik_rrt(ctx: PlanningContext, q_start: np.ndarray, sampler: GoalSampler, settings: IKRRTSettings = IKRRTSettings(),
@@ -138,8 +170,13 @@ def ik_rrt(ctx: PlanningContext, q_start: np.ndarray, sampler: GoalSampler, sett
         :func:`~prehensile.planning.jplus_rrt.jplus_rrt` and its bimanual variants), ``info``
         holds what the winning sample reached (``info["goal"]``, e.g. the grasp pair), which
         of the goal configurations sampled it was (``goal_configuration``) and how many were
-        (``goal_configurations``). TIMEOUT or NO_GOAL_CONFIGURATION (IK found nothing) when
-        the budget runs out.
+        (``goal_configurations``); ``stats`` count the IK sampling as search time. TIMEOUT or
+        NO_GOAL_CONFIGURATION (IK found nothing) when the budget runs out; INVALID_START (with
+        ``info["reason"]``) for a start outside the limits or in collision.
+
+    Raises:
+        PrehensileError: ``sampler`` is not a :class:`GoalSampler`, or its ``q_ref`` and
+            ``q_start`` differ in joints the context does not plan.
     """
     return multi_eef_rrt(ctx, q_start, {"": sampler}, settings, rng)
 
@@ -155,7 +192,8 @@ def multi_eef_rrt(ctx: PlanningContext | dict[str, PlanningContext], q_start: np
         rng: random source or seed (:func:`~prehensile.planning.seeding.planner_rng`: seed 0 if None).
 
     Returns:
-        :class:`PlanResult` with ``end_effector`` the hand that grasps.
+        :class:`PlanResult` as of :func:`ik_rrt`, with ``end_effector`` the hand that grasps;
+        ``stats`` are totals over the hands' searches.
     """
     if not samplers:
         raise PrehensileError("multi_eef_rrt: no goal samplers given (samplers: end-effector name -> sampler)")
@@ -168,8 +206,14 @@ def multi_eef_rrt(ctx: PlanningContext | dict[str, PlanningContext], q_start: np
     deadline = start + settings.time_budget_s
     rng = planner_rng(rng)
     contexts = ctx if isinstance(ctx, dict) else {name: ctx for name in samplers}
-    for name in samplers:  # a start only the balls reject is left to the search's certified escape
+    for name, sampler in samplers.items():  # a start only the balls reject is left to the search's certified escape
         context = contexts[name]
+        if not isinstance(sampler, GoalSampler):
+            raise PrehensileError(f"multi_eef_rrt: the sampler{f' of {name!r}' if name else ''} is a "
+                                  f"{type(sampler).__name__}, not a "
+                                  "GoalSampler (grasp_sampler, dual_arm_sampler, regrasp_sampler or "
+                                  "GoalSampler(who, q_ref, draw))")
+        sampler.check_start(context, q_start)
         if not context.is_usable_end(q_start):
             return context.explain(PlanResult(PlanStatus.INVALID_START, np.zeros((0, len(q_start))), PlanStats(),
                                               end_effector=name), q_start)
@@ -177,15 +221,11 @@ def multi_eef_rrt(ctx: PlanningContext | dict[str, PlanningContext], q_start: np
     while clock() < deadline:
         for name, search in searches.items():
             result = search.step(rng, deadline)
-            if result is not None:  # search time includes the IK sampling of every hand
-                spent = clock() - start - result.stats.simplify_time_s - result.stats.certify_time_s
-                stats = dataclasses.replace(result.stats, plan_time_s=spent,
-                                            ik_solutions=sum(len(s.infos) for s in searches.values()))
+            if result is not None:
+                stats = _total_stats(list(searches.values()), clock() - start)
                 return contexts[name].explain(dataclasses.replace(result, stats=stats, end_effector=name), q_start)
-    found = sum(len(s.infos) for s in searches.values())
-    status = PlanStatus.TIMEOUT if found else PlanStatus.NO_GOAL_CONFIGURATION
-    first = next(iter(searches.values()))
-    stats = dataclasses.replace(first.stats(clock() - start), ik_solutions=found)
+    stats = _total_stats(list(searches.values()), clock() - start)
+    status = PlanStatus.TIMEOUT if stats.ik_solutions else PlanStatus.NO_GOAL_CONFIGURATION
     return contexts[next(iter(samplers))].explain(PlanResult(status, np.zeros((0, len(q_start))), stats), q_start)
 
 
@@ -209,13 +249,13 @@ def grasp_sampler(ctx: PlanningContext, solver: ChainSolver, target_poses: np.nd
         result = solve_ik_complete(solver, targets, seed, rng, settings, is_valid=ctx.is_usable_end)
         return (result.q, {"grasp": result.target_index}) if result.success else (None, {})
 
-    return sample
+    return GoalSampler("grasp_sampler", q_ref, sample)
 
 
 def dual_arm_sampler(ctx: PlanningContext, arms: Sequence[ChainSolver], target_poses: Sequence[np.ndarray],
                      q_ref: np.ndarray, free: Sequence[str] | str | None = None) -> GoalSampler:
     """Bimanual IK-RRT goals: both hands on their pose sets, free joints (e.g. the hip) sampled."""
-    q_ref = ctx.check_solvers(arms, "dual_arm_sampler", q_ref)
+    q_ref = ctx.check_solvers(arms, "dual_arm_sampler", q_ref, free)
     check_arm_pair(arms, "dual_arm_sampler")
 
     def sample(rng: np.random.Generator, call: int, attempts: int, budget: float):
@@ -224,7 +264,7 @@ def dual_arm_sampler(ctx: PlanningContext, arms: Sequence[ChainSolver], target_p
                                  is_valid=ctx.is_valid)
         return (result.q, _pair_info(result.target_indices, target_poses)) if result.success else (None, {})
 
-    return sample
+    return GoalSampler("dual_arm_sampler", q_ref, sample)
 
 
 def _pair_info(indices: tuple[int, int], pose_sets: Sequence[np.ndarray]) -> dict:
@@ -243,7 +283,7 @@ def regrasp_sampler(ctx: PlanningContext, arms: Sequence[ChainSolver], grasps: S
     Found once here: the grasp pairs whose hands do not overlap (:func:`separate_grasp_pairs`)
     and, per arm, the reachability samples free of self-collision (:func:`self_free_reach`).
     """
-    q_ref = ctx.check_solvers(arms, "regrasp_sampler", q_ref)
+    q_ref = ctx.check_solvers(arms, "regrasp_sampler", q_ref, free)
     check_arm_pair(arms, "regrasp_sampler")
     pairs = separate_grasp_pairs(ctx, arms, grasps)
     reach = [self_free_reach(ctx, arm) for arm in arms]
@@ -256,7 +296,7 @@ def regrasp_sampler(ctx: PlanningContext, arms: Sequence[ChainSolver], grasps: S
             return None, {}
         return result.q, {**_pair_info(result.target_indices, grasps), "T_world_object": T_world_object}
 
-    return sample
+    return GoalSampler("regrasp_sampler", q_ref, sample)
 
 
 def separate_grasp_pairs(ctx: PlanningContext, arms: Sequence[ChainSolver], grasps: Sequence[np.ndarray]) -> np.ndarray:

@@ -247,10 +247,7 @@ def regrasp_jplus_rrt(ctx: PlanningContext, q_start: np.ndarray, arms: Sequence[
     s = settings
     pair = HandPair(arms, free, JacobianIKSettings(method="pinv", max_step_position=s.max_step_position,
                                                    max_step_rotation=s.max_step_rotation))
-    ctx.check_solvers(arms, "regrasp J+-RRT")
-    if np.setdiff1d(pair.var_q, ctx.space.indices).size:
-        raise PrehensileError(f"regrasp J+-RRT: the arms and free joints move joints the context does not plan; "
-                              f"planned: {', '.join(ctx.space.joint_names)}")
+    ctx.check_solvers(arms, "regrasp J+-RRT", free=free)
     return _grow(ctx, q_start, _GraspPairGoals(pair, grasps, objects, s), replace(s, exact_approach=0.0), rng)
 
 
