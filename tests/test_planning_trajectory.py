@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from prehensile.errors import PrehensileError
+from prehensile.planning import PlanResult, PlanStats, PlanStatus
 from prehensile.planning.trajectory import (DEFAULT_ACCELERATION, DEFAULT_VELOCITY, Trajectory, model_limits,
                                             time_parameterize)
 
@@ -87,6 +88,9 @@ def test_same_input_same_output_and_json():
     assert data["joint_names"] == list(names) and data["duration"] == pytest.approx(a.duration)
     assert np.array_equal(np.array(data["q"]), a.q)
     assert time_parameterize(path, velocity, acceleration).to_dict()["joint_names"] == []
+    assert a == a and a != b  # compared by identity: equal arrays do not raise an ambiguous truth value
+    result = PlanResult(PlanStatus.SUCCESS, path, PlanStats())
+    assert result == result and result != PlanResult(PlanStatus.SUCCESS, path.copy(), PlanStats())
 
 
 def test_single_segment_matches_the_analytic_trapezoid():

@@ -81,7 +81,7 @@ class IKBenchSettings:
                 raise PrehensileError(f"{name} must be positive, got {getattr(self, name)}")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)  # holds arrays: compared by identity
 class IKProblem:
     """The benchmark's targets on one chain.
 

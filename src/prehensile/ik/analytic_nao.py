@@ -95,7 +95,7 @@ _SWIVEL_STEP = 1e-6  # rad: finite-difference step of the swivel derivative
 _TWO_PI = 2.0 * np.pi
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)  # holds arrays: compared by identity
 class _Arm:
     """Parameters of one NAO-type arm chain, read from the model (m, rad)."""
 

@@ -24,7 +24,7 @@ class IKStatus(enum.Enum):
     UNREACHABLE = "unreachable"      # the target lies provably outside the chain's workspace
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)  # holds arrays: compared by identity
 class IKResult:
     """What an IK solver found.
 

@@ -49,7 +49,7 @@ class PlanStats:
         return self.plan_time_s + self.simplify_time_s + self.certify_time_s
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)  # holds arrays: compared by identity
 class PlanResult:
     """A planner's answer.
 

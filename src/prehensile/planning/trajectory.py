@@ -49,7 +49,7 @@ _SPLINE_GRID = 8  # TOPP-RA gridpoints per spline segment, knots included (the s
 _DUPLICATE_TOL = 1e-9  # rad or m: waypoints closer than this (max-norm) are one waypoint
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)  # holds arrays: compared by identity
 class Trajectory:
     """Joint positions, velocities and accelerations sampled at a fixed period.
 
@@ -60,7 +60,7 @@ class Trajectory:
         qdd: (M, n) accelerations (rad/s^2 or m/s^2); zero at the last sample (at rest).
         joint_names: names of the n joints, or () when unknown.
         motion: the continuous motion the samples were taken from, ``t (K,) -> (q, qd, qdd)``
-            (K, n) each, or None (a trajectory given only by its samples); not compared.
+            (K, n) each, or None (a trajectory given only by its samples).
     """
 
     t: np.ndarray
@@ -69,7 +69,7 @@ class Trajectory:
     qdd: np.ndarray
     joint_names: tuple[str, ...] = ()
     motion: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]] | None = field(
-        default=None, compare=False, repr=False)
+        default=None, repr=False)
 
     def __post_init__(self) -> None:
         for name in ("t", "q", "qd", "qdd"):
