@@ -69,6 +69,24 @@ def test_plan_bundled_scene(demo, tmp_path):
     assert (tmp_path / "plan.png").stat().st_size > 10_000
 
 
+def test_an_interrupted_plan_leaves_the_earlier_outputs_whole(tmp_path, monkeypatch):
+    """The outputs are written together, after the picture is drawn: an interruption before
+    then changes none of them."""
+    import prehensile.viz
+
+    assert _plan("plan_demo", "--out", tmp_path).exit_code == 0
+    before = {f.name: f.read_bytes() for f in tmp_path.iterdir()}
+    assert set(before) == {"path.json", "trajectory.json", "plan.png"}
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(prehensile.viz, "scene_image", interrupted)
+    result = _plan("plan_demo", "--goal", *IN_THE_WALL[:1], *["0.3"] * 6, "--out", tmp_path)
+    assert result.exit_code != 0
+    assert {f.name: f.read_bytes() for f in tmp_path.iterdir()} == before  # no temp files either
+
+
 @pytest.mark.parametrize("planner", ["ik_rrt", "jplus_rrt"])
 def test_plan_to_a_target_pose(demo, planner, tmp_path):
     _, scene, _ = demo

@@ -252,3 +252,15 @@ def test_a_capsule_of_length_zero_is_a_ball(tmp_path):
     data = {"objects": [{"name": "pill", "shape": {"type": "capsule", "radius": 0.02, "length": 0}}]}
     (pill,) = load_scene(_write(tmp_path, data)).objects
     assert pill.geometries[0].shape == Capsule(0.02, 0.0)
+
+
+def test_a_scene_is_drawn_in_the_format_its_file_name_asks_for(tmp_path):
+    from prehensile.viz import render_scene
+
+    colliding = check_scene(load_scene(DATA / "colliding.yaml"))
+    scene = load_scene(DATA / "colliding.yaml")
+    png = render_scene(scene, tmp_path / "out" / "scene.png", colliding_links=colliding.colliding_links,
+                       title="a post through link2")
+    svg = render_scene(scene, tmp_path / "scene.svg", views=((30.0, 45.0),))
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and b"<svg" in svg.read_bytes()[:1000]
+    assert sorted(p.name for p in tmp_path.rglob("*")) == ["out", "scene.png", "scene.svg"]

@@ -158,8 +158,8 @@ def demo(
     """Load every bundled robot and the bundled scene, check it and draw it."""
     from prehensile import robots
     from prehensile.scene import bundled_scene_path, check_scene, load_scene
-    from prehensile.storage import atomic_write_json, check_writable
-    from prehensile.viz import render_scene
+    from prehensile.storage import atomic_write_files, check_writable, json_bytes
+    from prehensile.viz import scene_image
 
     check_writable(out, "--out", folder=True)
     models = []
@@ -171,12 +171,11 @@ def demo(
     scene = load_scene(path)
     result = check_scene(scene, "exact")
     print_check(path.name, result)
-    out.mkdir(parents=True, exist_ok=True)
-    png = render_scene(scene, out / "demo.png", result.colliding_links, result.colliding_bodies(),
-                       title="prehensile demo: colliding links in red")
     report = {"scene": str(path), "bundled_robots": models, **result.to_dict()}
-    atomic_write_json(out / "demo.json", report)
-    console.print(f"wrote {png} and {out / 'demo.json'}")
+    image = scene_image(scene, result.colliding_links, result.colliding_bodies(),
+                        title="prehensile demo: colliding links in red")
+    png, written = atomic_write_files({out / "demo.png": image, out / "demo.json": json_bytes(report)})
+    console.print(f"wrote {png} and {written}")
 
 
 if __name__ == "__main__":  # pragma: no cover

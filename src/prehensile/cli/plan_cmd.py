@@ -176,14 +176,15 @@ def picture_scene(scene: Scene, robot: PlacedRobot, configurations: np.ndarray) 
 
 
 def write_outputs(result, context, scene: Scene, robot: PlacedRobot, report: dict, out: Path) -> list[Path]:
-    """Write path.json, trajectory.json (on success) and plan.png to ``out``; returns the paths."""
+    """Write path.json, trajectory.json (on success, else an earlier one is removed) and
+    plan.png to ``out``, together (:func:`~prehensile.storage.atomic_write_files`); returns the paths."""
     from prehensile.planning import certify_path
     from prehensile.planning.trajectory import model_limits, time_parameterize
-    from prehensile.storage import atomic_write_json
-    from prehensile.viz import render_scene
+    from prehensile.storage import atomic_write_files, json_bytes
+    from prehensile.viz import scene_image
     from prehensile.viz.picture import robot_color
 
-    written = [atomic_write_json(out / "path.json", report)]
+    files = {out / "path.json": json_bytes(report)}
     if result.success:
         space = context.space
         velocity, acceleration = model_limits(robot.model, space.indices)
@@ -196,7 +197,7 @@ def write_outputs(result, context, scene: Scene, robot: PlacedRobot, report: dic
                                        joint_names=space.joint_names)
         extra = {"velocity_limits": velocity.tolist(), "acceleration_limits": acceleration.tolist(),
                  "fixed_joints": report["fixed_joints"]}  # the robot's other joints, held throughout
-        written.append(atomic_write_json(out / "trajectory.json", {**trajectory.to_dict(), **extra}))
+        files[out / "trajectory.json"] = json_bytes({**trajectory.to_dict(), **extra})
         inner = result.path[1:-1]
         picks = inner[np.linspace(0, len(inner) - 1, min(PICTURE_WAYPOINTS, len(inner))).round().astype(int)]
         shown = np.concatenate([result.path[:1], picks, result.path[-1:]])
@@ -204,11 +205,13 @@ def write_outputs(result, context, scene: Scene, robot: PlacedRobot, report: dic
                  f"{len(result.path)} waypoints, "
                  f"{report['path_length_m']:.2f} m weighted length, {trajectory.duration:.2f} s")
     else:
-        (out / "trajectory.json").unlink(missing_ok=True)  # never leave an earlier plan's trajectory
         known = [report["start"]] + ([] if report["goal"] is None else [report["goal"]])
         shown = context.space.full(np.array(known))
         title = f"{robot.name}: no path ({result.status.value}); start{' and goal' if len(known) == 2 else ''} shown"
-    written.append(render_scene(picture_scene(scene, robot, shown), out / "plan.png", title=title))
+    files[out / "plan.png"] = scene_image(picture_scene(scene, robot, shown), title=title)
+    written = atomic_write_files(files)
+    if not result.success:
+        (out / "trajectory.json").unlink(missing_ok=True)  # never leave an earlier plan's trajectory
     return written
 
 

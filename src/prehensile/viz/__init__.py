@@ -1,5 +1,5 @@
 """Visualisation: static pictures (matplotlib) and, later, the web viewer."""
 
-from prehensile.viz.picture import decimate, render_scene, scene_triangles
+from prehensile.viz.picture import decimate, render_scene, scene_image, scene_triangles
 
-__all__ = ["decimate", "render_scene", "scene_triangles"]
+__all__ = ["decimate", "render_scene", "scene_image", "scene_triangles"]

@@ -151,9 +151,14 @@ def scene_triangles(
     return triangles, rgba, labels
 
 
-def render_scene(
+def render_scene(scene: Scene, path: str | os.PathLike, **options) -> Path:
+    """Draw ``scene`` (:func:`scene_image` with ``options``) and save it atomically to ``path``
+    (folders are created; the suffix gives the format, PNG without one); returns the path."""
+    return atomic_write_bytes(path, scene_image(scene, image_format=Path(path).suffix.lstrip(".") or "png", **options))
+
+
+def scene_image(
     scene: Scene,
-    path: str | os.PathLike,
     colliding_links: Mapping[str, Iterable[str]] | None = None,
     colliding_bodies: Iterable[str] = (),
     title: str = "",
@@ -162,12 +167,12 @@ def render_scene(
     max_faces: int = 300,
     size: tuple[float, float] = (14.0, 7.0),
     dpi: int = 110,
-) -> Path:
-    """Draw ``scene`` from each of ``views`` side by side and save a PNG.
+    image_format: str = "png",
+) -> bytes:
+    """Draw ``scene`` from each of ``views`` side by side.
 
     Args:
         scene: the scene (robots at their configurations).
-        path: output PNG file (folders are created).
         colliding_links: robot name -> links drawn red and labelled.
         colliding_bodies: bodies drawn red and labelled.
         title: figure title.
@@ -176,9 +181,10 @@ def render_scene(
         max_faces: decimation target per mesh (faces).
         size: figure size in inches (width, height).
         dpi: resolution in dots per inch.
+        image_format: a matplotlib file format ("png", "svg", "pdf", ...).
 
     Returns:
-        The path written.
+        The image file's bytes.
     """
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
@@ -217,8 +223,8 @@ def render_scene(
         fig.suptitle(title, fontsize=12)
     fig.subplots_adjust(left=0.01, right=0.99, bottom=0.02, top=0.93, wspace=0.02)
     image = io.BytesIO()
-    fig.savefig(image, format=Path(path).suffix.lstrip(".") or "png")
-    return atomic_write_bytes(path, image.getvalue())
+    fig.savefig(image, format=image_format)
+    return image.getvalue()
 
 
 def _spread(labels: list[tuple[str, np.ndarray]], lift: float = 0.25, gap: float = 0.08):
