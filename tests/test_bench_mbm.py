@@ -167,6 +167,7 @@ def test_ball_radius_sizes_the_generated_balls(tmp_path):
     (["--budget", "inf"], "--budget: must be a positive, finite time (s), got inf"),
     (["--ball-radius", "-1"], "--ball-radius: must be positive (m), got -1"),
     (["--ball-radius", "0.04", "--spheres", __file__], "give it or --spheres, not both"),
+    (["--planner", "prm"], "--planner: 'prm' is not available; valid: rrt_connect"),
 ])
 def test_bad_budget_and_ball_options_exit_2(tmp_path, extra, message):
     _write_armar_problems(tmp_path / "problems" / "shelf_armar3")

@@ -180,6 +180,11 @@ def test_objects_may_sit_in_the_robots_root_frame():
     np.testing.assert_allclose((body.T_world_body @ body.geometries[0].T_link_geom)[:3, 3], [1.1, 2.0, 0.5])
     with pytest.raises(SceneError, match=f"frame '{model.link_names[0]}' is not supported"):
         moveit_scene_from_dict({"world": {"collision_objects": [obj]}}, "s.yaml")  # no robot: no root frame
+    in_the_hand = {**obj, "header": {"frame_id": "panda_hand"}}
+    fixed = [{"child_frame_id": "world", "transform": {"translation": [0, 0, 0], "rotation": [0, 0, 0, 1]}}]
+    with pytest.raises(SceneError, match="frame 'panda_hand' is not supported; valid: world, panda_link0$"):
+        moveit_scene_from_dict({"fixed_frame_transforms": fixed, "robot_state": base,
+                                "world": {"collision_objects": [in_the_hand]}}, "s.yaml", model)
 
 
 def test_object_pose_composes_with_primitive_poses():

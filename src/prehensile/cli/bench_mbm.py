@@ -41,7 +41,7 @@ def bench_mbm(
     Reports solved, median / p95 planning time (search + simplification), path length,
     certification time and exactly-colliding paths, per scenario and overall.
     """
-    from prehensile.benchmarking.mbm import MBMSettings, benchmark_spheres, run_mbm
+    from prehensile.benchmarking.mbm import PLANNERS, MBMSettings, benchmark_spheres, run_mbm
     from prehensile.cli.robot import load_robot
     from prehensile.storage import atomic_write_json, check_writable
 
@@ -49,6 +49,8 @@ def bench_mbm(
     check_seed(seed)
     if limit < 0:
         raise PrehensileError(f"--limit: must be >= 0 (0: all problems), got {limit}")
+    if planner not in PLANNERS:
+        raise PrehensileError(f"--planner: '{planner}' is not available; valid: {', '.join(PLANNERS)}")
     settings = MBMSettings(planner=planner, time_budget_s=budget, seed=seed, limit=limit, compare_ompl=compare_ompl)
     if json_out is not None:
         check_writable(json_out, "--json")

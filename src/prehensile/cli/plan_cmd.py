@@ -83,7 +83,8 @@ def goal_configuration(robot: PlacedRobot, joints: list[str], values: list[str] 
         except ValueError:
             raise PrehensileError(f"--goal: expected numbers (rad or m), got {' '.join(values)}") from None
         if len(numbers) != len(joints):
-            raise PrehensileError(f"--goal: expected {len(joints)} values, one per planned joint "
+            plural = "s" * (len(joints) != 1)
+            raise PrehensileError(f"--goal: expected {len(joints)} value{plural}, one per planned joint "
                                   f"({', '.join(joints)}), got {len(numbers)}")
         goal = dict(zip(joints, numbers))
     elif scene_goal:
@@ -273,6 +274,9 @@ def plan(
     model = placed.model
     scene_goal = goals.get(placed.name)
     if chain is not None:
+        if chain not in model.chains:
+            raise PrehensileError(f"--chain: robot '{placed.name}' of {path} has no chain '{chain}'; "
+                                  f"chains: {', '.join(model.chains)}")
         joints = list(model.chain(chain).joint_names)
     elif scene_goal:
         joints = list(scene_goal)

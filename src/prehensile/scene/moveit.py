@@ -229,7 +229,7 @@ def _collision_object(obj: Any, frames: Mapping[str, np.ndarray], where: str) ->
     elif frame in frames:
         T_world_frame = frames[frame]
     else:
-        valid = ", ".join(["world", *frames])
+        valid = ", ".join(dict.fromkeys(["world", *frames]))
         raise SceneError(f"{where}.header.frame_id: frame '{frame}' is not supported; valid: {valid}")
     T_world_object = T_world_frame @ (_pose(obj["pose"], f"{where}.pose") if obj.get("pose") else np.eye(4))
     geometries = []
