@@ -145,7 +145,7 @@ class _Search:
         self.certify_s += s.certify_time_s
         if result.status in (PlanStatus.TIMEOUT, PlanStatus.CERTIFICATION_FAILED, PlanStatus.INVALID_GOAL):
             return None
-        goal = self.infos[result.goal_index] if result.success else {}
+        goal = self.infos[result.goal_index] if result.success else {}  # stats: the caller's _total_stats
         return PlanResult(result.status, result.path, PlanStats(), goal.get("grasp", -1),
                           info={"goal": goal, "goal_configuration": result.goal_index,
                                 "goal_configurations": len(self.infos)})
@@ -210,9 +210,8 @@ def multi_eef_rrt(ctx: PlanningContext | dict[str, PlanningContext], q_start: np
         context = contexts[name]
         if not isinstance(sampler, GoalSampler):
             raise PrehensileError(f"multi_eef_rrt: the sampler{f' of {name!r}' if name else ''} is a "
-                                  f"{type(sampler).__name__}, not a "
-                                  "GoalSampler (grasp_sampler, dual_arm_sampler, regrasp_sampler or "
-                                  "GoalSampler(who, q_ref, draw))")
+                                  f"{type(sampler).__name__}, not a GoalSampler (grasp_sampler, dual_arm_sampler, "
+                                  "regrasp_sampler or GoalSampler(who, q_ref, draw))")
         sampler.check_start(context, q_start)
         if not context.is_usable_end(q_start):
             return context.explain(PlanResult(PlanStatus.INVALID_START, np.zeros((0, len(q_start))), PlanStats(),
