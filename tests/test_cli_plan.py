@@ -189,7 +189,7 @@ def test_plan_to_a_position_of_a_short_arm(tmp_path):
     (["plan_demo", "--goal", "a", "b"], "expected numbers"),
     (["plan_demo", "--goal", "9", "0", "0", "-2", "0", "2", "0.7"], "outside its limits"),
     (["plan_demo", "--robot", "nao"], "no robot 'nao'; robots: panda"),
-    (["plan_demo", "--chain", "leg"], "--chain: robot 'panda' of"),
+    (["plan_demo", "--chain", "leg"], "--chain: robot 'panda' has no chain 'leg'; chains: arm, hand"),
     (["plan_demo", "--chain", "hand"], "the scene's goal sets panda_joint1"),
     (["plan_demo", "--planner", "prm"], "valid: rrt_connect, ik_rrt, jplus_rrt"),
     (["plan_demo", "--target", *BEHIND_THE_WALL], "give --chain"),

@@ -32,7 +32,7 @@ import typer
 
 from prehensile.cli.app import (BALL_RADIUS_OPTION, app, check_ball_radius, check_budget, check_seed, console,
                                 extra_values, handles_errors)
-from prehensile.errors import PrehensileError, SceneError, missing_file
+from prehensile.errors import PrehensileError, SceneError, UnknownFrameError, missing_file
 from prehensile.scene.scene import PlacedRobot, Scene
 
 EXIT_NO_PATH = 1
@@ -274,10 +274,10 @@ def plan(
     model = placed.model
     scene_goal = goals.get(placed.name)
     if chain is not None:
-        if chain not in model.chains:
-            raise PrehensileError(f"--chain: robot '{placed.name}' of {path} has no chain '{chain}'; "
-                                  f"chains: {', '.join(model.chains)}")
-        joints = list(model.chain(chain).joint_names)
+        try:
+            joints = list(model.chain(chain).joint_names)
+        except UnknownFrameError as error:
+            raise PrehensileError(f"--chain: {error} (scene {path})") from None
     elif scene_goal:
         joints = list(scene_goal)
     else:
