@@ -330,9 +330,10 @@ def test_checker_inputs_a_robot_without_joints_and_contacts_of_the_base():
 
 
 @pytest.mark.parametrize("kwargs, message", [
-    ({"max_edge": 0.0}, "max_edge must be a positive length"),  # used to subdivide forever
-    ({"max_radius": -1.0}, "max_radius must be a positive length"),
-    ({"n_spheres": 0}, "n_spheres must be a whole number >= 1"),
+    ({"max_edge": 0.0}, "max_edge must be > 0 and finite, got 0.0"),  # used to subdivide forever
+    ({"max_radius": -1.0}, "max_radius must be > 0 and finite or None, got -1.0"),
+    ({"n_spheres": 0}, "n_spheres must be an integer >= 1, got 0"),
+    ({"n_spheres": 2.5}, "n_spheres must be an integer >= 1, got 2.5"),
 ])
 def test_sphere_generation_refuses_bad_parameters(kwargs, message):
     with pytest.raises(ModelError, match=f"generate_sphere_model: {message}"):

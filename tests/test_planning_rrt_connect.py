@@ -317,8 +317,10 @@ def test_a_search_stops_at_its_iteration_cap(arm):
     search.add_goals(np.array([np.pi / 2, 0.0, 0.0]))
     first, second = search.solve(5.0, max_iterations=40), search.solve(5.0, max_iterations=25)
     assert (first.status, first.stats.iterations, second.stats.iterations) == (PlanStatus.TIMEOUT, 40, 25)
-    with pytest.raises(PrehensileError, match="max_iterations must be a positive integer"):
-        search.solve(1.0, max_iterations=0)
+    for bad in (0, 2.5, "5"):
+        with pytest.raises(PrehensileError, match=f"max_iterations must be an integer >= 1 or None, got {bad!r}"):
+            search.solve(1.0, max_iterations=bad)
+    assert search.solve(5.0, max_iterations=10.0).stats.iterations == 10  # a whole float counts
 
 
 def test_search_resumes_its_trees_and_takes_goals_added_later(arm):
@@ -337,7 +339,7 @@ def test_search_resumes_its_trees_and_takes_goals_added_later(arm):
     reachable = np.array([1.5, 0.5, -0.5])
     search.add_goals(reachable)
     for budget in (0.0, -1.0, float("nan"), "1"):
-        with pytest.raises(PrehensileError, match="solve: time_budget_s must be a positive number"):
+        with pytest.raises(PrehensileError, match="solve: time_budget_s must be > 0 and finite, got"):
             search.solve(budget)
     for bad, message in ((dict(time_budget_s=float("inf")), "time_budget_s must be > 0 and finite, got inf"),
                          (dict(shortcut_min_gain=1.0), r"shortcut_min_gain must be in \[0, 1\), got 1.0"),
@@ -571,9 +573,12 @@ def test_shortcut_never_lengthens_nor_invalidates(arm):
         np.testing.assert_array_equal(short[-1], goal)
         assert ctx.space.path_length(short) <= length + 1e-9
         assert all(ctx.check_motion(a, b) for a, b in zip(short[:-1], short[1:]))
-    for bad in (dict(iterations=-1), dict(iterations=2.5), dict(time_budget_s=-1.0), dict(time_budget_s=float("nan")),
-                dict(min_gain=-0.1), dict(min_gain=1.0), dict(retries=-1), dict(retries=0.5)):
-        with pytest.raises(PrehensileError, match="shortcut: iterations and retries must be counts >= 0"):
+    for bad, valid in ((dict(iterations=-1), "an integer >= 0"), (dict(iterations=2.5), "an integer >= 0"),
+                       (dict(time_budget_s=-1.0), ">= 0"), (dict(time_budget_s=float("nan")), ">= 0"),
+                       (dict(min_gain=-0.1), r"in \[0, 1\)"), (dict(min_gain=1.0), r"in \[0, 1\)"),
+                       (dict(retries=-1), "an integer >= 0"), (dict(retries=0.5), "an integer >= 0")):
+        (name, value), = bad.items()
+        with pytest.raises(PrehensileError, match=f"shortcut: {name} must be {valid}, got {value}"):
             shortcut(ctx, detour, 0, **bad)
     with pytest.raises(PrehensileError, match="shortcut: resolution: must be a finite length"):
         shortcut(ctx, detour, 0, resolution=float("inf"))  # would let every shortcut through the wall

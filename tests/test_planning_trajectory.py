@@ -125,10 +125,10 @@ def test_single_configuration_and_bad_input():
     with pytest.raises(PrehensileError, match="acceleration_limits"):
         time_parameterize(path, 1.0, np.ones(3))
     for dt in (0.0, float("inf")):
-        with pytest.raises(PrehensileError, match="dt must be a positive, finite time"):
+        with pytest.raises(PrehensileError, match="time_parameterize: dt must be > 0 and finite, got"):
             time_parameterize(path, 1.0, 1.0, dt=dt)
     for step in (0.0, -0.01, float("nan")):
-        with pytest.raises(PrehensileError, match="blend_step must be positive"):
+        with pytest.raises(PrehensileError, match="time_parameterize: blend_step must be > 0, got"):
             time_parameterize(path, 1.0, 1.0, blend_check=lambda a, b: True, blend_step=step)
     with pytest.raises(PrehensileError, match="joint names"):
         Trajectory(np.zeros(1), np.zeros((1, 2)), np.zeros((1, 2)), np.zeros((1, 2)), ("a",))

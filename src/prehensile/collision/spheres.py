@@ -21,6 +21,7 @@ from prehensile.collision.sphere_fit import (
 from prehensile.errors import ModelError
 from prehensile.model.geometry import Mesh, Sphere
 from prehensile.model.robot_model import RobotModel
+from prehensile.settings import FINITE_NON_NEGATIVE, FINITE_POSITIVE, at_least, check_value, or_none
 
 log = logging.getLogger(__name__)
 
@@ -123,12 +124,11 @@ def _from_lists(model: RobotModel, per_link: list[tuple[np.ndarray, np.ndarray]]
     return SphereModel(model.link_names, links, centers, radii, covering)
 
 
-def _check_positive(who: str, **values: float | None) -> None:
-    """ModelError naming ``who`` and the argument unless every value given (not None) is a
-    positive finite length (m)."""
-    for name, value in values.items():
-        if value is not None and not (np.isfinite(value) and value > 0):
-            raise ModelError(f"{who}: {name} must be a positive length (m), got {value}")
+def _check_arguments(who: str, **values: tuple) -> None:
+    """ModelError naming ``who`` and the first argument that breaks its rule; ``values``:
+    name=(value, :data:`~prehensile.settings.Rule`)."""
+    for name, (value, rule) in values.items():
+        check_value(f"{who}: {name}", value, rule, ModelError)
 
 
 def generate_sphere_model(
@@ -156,9 +156,8 @@ def generate_sphere_model(
     Raises:
         ModelError: ``n_spheres`` below 1, or ``max_radius`` / ``max_edge`` not positive.
     """
-    _check_positive("generate_sphere_model", max_edge=max_edge, max_radius=max_radius)
-    if not (float(n_spheres) == int(n_spheres) and n_spheres >= 1):
-        raise ModelError(f"generate_sphere_model: n_spheres must be a whole number >= 1, got {n_spheres}")
+    _check_arguments("generate_sphere_model", n_spheres=(n_spheres, at_least(1)),
+                     max_radius=(max_radius, or_none(FINITE_POSITIVE)), max_edge=(max_edge, FINITE_POSITIVE))
     params = {"kind": "generate", "n_spheres": int(n_spheres), "max_radius": max_radius, "max_edge": float(max_edge)}
 
     def build() -> SphereModel:
@@ -227,9 +226,8 @@ def pad_sphere_model(
     """
     if tuple(spheres.link_names) != tuple(model.link_names):
         raise ModelError("pad_sphere_model: the sphere model belongs to a different link list")
-    _check_positive("pad_sphere_model", max_edge=max_edge, extra_radius=extra_radius)
-    if not max_growth >= 0:
-        raise ModelError(f"pad_sphere_model: max_growth must be >= 0 (m), got {max_growth}")
+    _check_arguments("pad_sphere_model", max_edge=(max_edge, FINITE_POSITIVE),
+                     max_growth=(max_growth, FINITE_NON_NEGATIVE), extra_radius=(extra_radius, FINITE_POSITIVE))
     if spheres.covering:
         return spheres
     params = {"kind": "pad", "max_edge": float(max_edge), "max_growth": float(max_growth),

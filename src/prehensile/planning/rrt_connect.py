@@ -55,7 +55,9 @@ from prehensile.planning.kernels import (
 from prehensile.planning.result import PlanResult, PlanStats, PlanStatus
 from prehensile.planning.seeding import planner_rng
 from prehensile.planning.shortcut import MAX_INSERTED, MIN_GAIN, prune, shortcut_rows, waypoint_marks
-from prehensile.settings import FINITE_POSITIVE, NON_NEGATIVE, POSITIVE, at_least, check_fields
+from prehensile.settings import (
+    FINITE_POSITIVE, FRACTION, NON_NEGATIVE, POSITIVE, at_least, check_fields, check_value, or_none,
+)
 
 RUNNING, FOUND, FULL = 0, 1, 2  # kernel results
 _TRAPPED, _ADVANCED, _REACHED, _NO_ROOM = 0, 1, 2, 3  # extension results
@@ -117,7 +119,7 @@ class RRTConnectSettings:
     def __post_init__(self) -> None:
         check_fields(self, time_budget_s=FINITE_POSITIVE, step=POSITIVE, eager_checks=at_least(1),
                      max_nodes=at_least(2), shortcut_iterations=at_least(0), shortcut_time_s=NON_NEGATIVE,
-                     shortcut_min_gain=(lambda v: 0 <= v < 1, "in [0, 1)"), certify_retries=at_least(0))
+                     shortcut_min_gain=FRACTION, certify_retries=at_least(0))
 
 
 @njit(cache=True, inline="always")
@@ -536,13 +538,8 @@ class RRTConnectSearch:
         Returns:
             :class:`PlanResult` with this call's statistics (see :func:`rrt_connect`).
         """
-        if not (isinstance(time_budget_s, (int, float, np.floating)) and np.isfinite(time_budget_s)
-                and time_budget_s > 0):
-            raise PrehensileError(f"RRTConnectSearch.solve: time_budget_s must be a positive number (s), "
-                                  f"got {time_budget_s!r}")
-        if max_iterations is not None and not (isinstance(max_iterations, (int, np.integer)) and max_iterations >= 1):
-            raise PrehensileError(f"RRTConnectSearch.solve: max_iterations must be a positive integer or None, "
-                                  f"got {max_iterations!r}")
+        check_value("RRTConnectSearch.solve: time_budget_s", time_budget_s, FINITE_POSITIVE)
+        check_value("RRTConnectSearch.solve: max_iterations", max_iterations, or_none(at_least(1)))
         t0 = clock() - self._setup_s
         self._setup_s = 0.0
         deadline = t0 + time_budget_s
@@ -563,7 +560,7 @@ class RRTConnectSearch:
                 # the covering balls of the refined context reject an end the planning balls let through
                 return PlanResult(status, empty, PlanStats(**totals), info=self._failure_info(attempt, report))
             before = self.trees.counters.copy()
-            n, root = self._run(deadline, NO_LIMIT if max_iterations is None else max_iterations)
+            n, root = self._run(deadline, NO_LIMIT if max_iterations is None else int(max_iterations))
             counters = self.trees.counters - before
             totals["plan_time_s"] += clock() - (t0 if attempt == 0 else begun)
             totals["iterations"] += int(counters[ITERATIONS])

@@ -24,11 +24,11 @@ import numpy as np
 from numba import njit
 
 from prehensile.clock import clock
-from prehensile.errors import PrehensileError
 from prehensile.planning.certify import check_valid_path, rework_certified
 from prehensile.planning.context import PlanningContext, check_resolution
 from prehensile.planning.kernels import FREE, NO_LIMIT, assign, distance, motion_free, rng_state, uniform
 from prehensile.planning.seeding import planner_rng
+from prehensile.settings import FRACTION, NON_NEGATIVE, at_least, check_value
 
 
 @njit(cache=True, _nrt=False)
@@ -204,10 +204,9 @@ def shortcut(ctx: PlanningContext, path: np.ndarray, rng: np.random.Generator | 
         (M, dof) waypoints, M <= N + min(iterations, :data:`MAX_INSERTED`), first and last equal
         to the input's.
     """
-    if not (int(iterations) == iterations and iterations >= 0 and time_budget_s >= 0 and 0 <= min_gain < 1
-            and int(retries) == retries and retries >= 0):
-        raise PrehensileError(f"shortcut: iterations and retries must be counts >= 0, time_budget_s >= 0 (s) and "
-                              f"min_gain in [0, 1), got {iterations}, {retries}, {time_budget_s} and {min_gain}")
+    for name, value, rule in (("iterations", iterations, at_least(0)), ("time_budget_s", time_budget_s, NON_NEGATIVE),
+                              ("min_gain", min_gain, FRACTION), ("retries", retries, at_least(0))):
+        check_value(f"shortcut: {name}", value, rule)
     path = check_valid_path(ctx, path, "shortcut").copy()  # returned as it is if nothing shorter passes
     res = ctx.resolution if resolution is None else check_resolution(resolution, "shortcut: resolution")
     rng = planner_rng(rng)

@@ -35,6 +35,7 @@ from toppra.interpolator import AbstractGeometricPath
 
 from prehensile.errors import PrehensileError
 from prehensile.model.robot_model import RobotModel
+from prehensile.settings import FINITE_POSITIVE, POSITIVE, check_value
 
 log = logging.getLogger(__name__)
 
@@ -305,10 +306,8 @@ def time_parameterize(path: np.ndarray, velocity_limits: float | np.ndarray, acc
                                   f"got {value}")
         limits.append(np.broadcast_to(value, (n,)).copy())
     velocity, acceleration = limits
-    if not 0 < dt < np.inf:
-        raise PrehensileError(f"time_parameterize: dt must be a positive, finite time (s), got {dt}")
-    if not blend_step > 0:
-        raise PrehensileError(f"time_parameterize: blend_step must be positive (rad or m), got {blend_step}")
+    check_value("time_parameterize: dt", dt, FINITE_POSITIVE)
+    check_value("time_parameterize: blend_step", blend_step, POSITIVE)
     corners = _corners(path)
     if len(corners) == 1:
         zero = np.zeros((1, n))
