@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import importlib
 import logging
 import re
 import time
@@ -502,7 +503,7 @@ def test_shortcuts_and_bands_of_a_certified_path_stay_certified_on_thin_balls(ar
     np.testing.assert_array_equal(band[[0, -1]], path[[0, -1]])
 
 
-def test_a_start_only_the_thin_balls_let_through_is_an_invalid_start(arm):
+def test_a_start_only_the_thin_balls_let_through_is_an_invalid_start(arm, monkeypatch):
     """The exact l3 touches a small block the thin balls miss: the path fails certification,
     the covering balls then reject the start, and no escape is certified from an exact contact."""
     model, spheres = arm
@@ -515,6 +516,17 @@ def test_a_start_only_the_thin_balls_let_through_is_an_invalid_start(arm):
     assert result.status is PlanStatus.INVALID_START, result
     assert not result.info["certify"].ok and "l3" in result.info["refined"]
     assert ctx.why_invalid(start).startswith("l3 collides with block")
+    # the statistics count the second attempt's setup (its escape searches may take the budget)
+    rrt_connect_module = importlib.import_module("prehensile.planning.rrt_connect")  # the package's name is the function
+    screen = rrt_connect_module._endpoints
+
+    def slow_on_the_cover(context, *args, **kwargs):
+        time.sleep(0.0 if context is ctx else 0.2)
+        return screen(context, *args, **kwargs)
+
+    monkeypatch.setattr(rrt_connect_module, "_endpoints", slow_on_the_cover)
+    again = rrt_connect(ctx, start, goal, FAST)
+    assert again.status is PlanStatus.INVALID_START and again.stats.plan_time_s >= 0.2
 
 
 def test_refined_contexts_of_two_scenes_share_the_robot_tables_not_the_world(arm):

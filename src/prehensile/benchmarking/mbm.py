@@ -275,7 +275,7 @@ def summarize(records: Sequence[dict]) -> dict:
         "path_length": mean_or_none(r["path_length"] for r in solved),
         "colliding_paths": sum(bool(r["exact_colliding"]) for r in solved),
         "collision_checks_median": float(np.median([r["collision_checks"] for r in solved])) if solved else None,
-        "planned_again": sum(r["attempts"] > 1 for r in solved),
+        "planned_again": sum(r["attempts"] > 1 for r in records),
         "statuses": statuses,
     }
 

@@ -555,10 +555,11 @@ class RRTConnectSearch:
                 self._build_trees(deadline)
             if self.trees is None or not self.goal_row:  # an escape search may have run out of time
                 status = self.start_status or (PlanStatus.TIMEOUT if clock() >= deadline else PlanStatus.INVALID_GOAL)
-                if report is None:
-                    return PlanResult(status, empty, PlanStats(plan_time_s=clock() - t0))
-                # the covering balls of the refined context reject an end the planning balls let through
-                return PlanResult(status, empty, PlanStats(**totals), info=self._failure_info(attempt, report))
+                totals["plan_time_s"] += clock() - (t0 if attempt == 0 else begun)
+                # after a failed certification: the covering balls of the refined context reject an end
+                # that the planning balls let through
+                info = {} if report is None else self._failure_info(attempt, report)
+                return PlanResult(status, empty, PlanStats(**totals), info=info)
             before = self.trees.counters.copy()
             n, root = self._run(deadline, NO_LIMIT if max_iterations is None else int(max_iterations))
             counters = self.trees.counters - before
