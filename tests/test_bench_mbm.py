@@ -234,6 +234,22 @@ def test_bad_goal_exits_2_naming_the_request(tmp_path, goal, message):
     assert result.exit_code == 2, result.output
     assert "request0001.yaml" in result.output and message in " ".join(result.output.split())
 
+def test_a_start_without_a_planned_joint_exits_2_naming_the_joints(tmp_path):
+    """A misspelt joint in the start state would leave the planned joint at its neutral value."""
+    import yaml
+
+    folder = tmp_path / "problems" / "shelf_armar3"
+    _write_armar_problems(folder)
+    request = yaml.safe_load((folder / "request0001.yaml").read_text())
+    names = request["start_state"]["joint_state"]["name"]
+    names[names.index("Elbow_R")] = "Elbow_RR"
+    (folder / "request0001.yaml").write_text(yaml.safe_dump(request))
+    result = runner.invoke(app, ["bench", "mbm", str(tmp_path / "problems"), "--robot", "armar3", "--budget", "0.1"])
+    assert result.exit_code == 2, result.output
+    assert ("request0001.yaml: start_state.joint_state: no start for planned joint(s) Elbow_R; robot 'armar3' has "
+            "no joint Elbow_RR (planned: ") in " ".join(result.output.split())
+
+
 def test_every_request_is_checked_before_planning(tmp_path, monkeypatch):
     import yaml
 

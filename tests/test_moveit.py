@@ -277,3 +277,21 @@ def test_request_for_another_robot_is_rejected():
     other = type(request)("arm", {"elbow": 1.0}, {"elbow": 0.0}, source="other.yaml")
     with pytest.raises(SceneError, match="other.yaml: start_state: robot 'panda' has no joint 'elbow'"):
         other.goal_configuration(model)
+
+
+def test_a_mimic_joint_in_a_request_must_follow_its_leader():
+    """MoveIt accepts values for mimic joints; they must agree with the joint they follow."""
+    from prehensile import robots
+    from prehensile.scene.moveit import MotionPlanRequest
+
+    panda = robots.load("panda")  # panda_finger_joint2 mimics panda_finger_joint1
+    assert dict(panda.mimic_joints) == {"panda_finger_joint2": (panda.joint_index("panda_finger_joint1"), 1.0, 0.0)}
+    fingers = {"panda_finger_joint1": 0.02, "panda_finger_joint2": 0.02}
+    request = MotionPlanRequest("hand", fingers, {**fingers, "panda_finger_joint1": 0.03,
+                                                  "panda_finger_joint2": 0.03}, source="r.yaml")
+    assert request.start_configuration(panda, strict=True)[panda.joint_index("panda_finger_joint1")] == 0.02
+    assert request.goal_configuration(panda, strict=True)[panda.joint_index("panda_finger_joint1")] == 0.03
+    apart = MotionPlanRequest("hand", {**fingers, "panda_finger_joint2": 0.035}, fingers, source="r.yaml")
+    with pytest.raises(SceneError, match=r"r.yaml: start_state: mimic joint 'panda_finger_joint2' = 0.035 disagrees "
+                                         r"with the joint it follows: 1 \* panda_finger_joint1 \+ 0 = 0.02"):
+        apart.start_configuration(panda)

@@ -143,8 +143,9 @@ def path_collides_exactly(space, exact, path: np.ndarray, resolution: float) -> 
     return len(active) == 1 and not bool(exact.is_free(path[0]))
 
 
-def check_goal(model: RobotModel, problem: MBMProblem, joints: Sequence[str]) -> None:
-    """The request's goal must set every planned joint and no other joint.
+def check_request(model: RobotModel, problem: MBMProblem, joints: Sequence[str]) -> None:
+    """The request's goal must set every planned joint and no other joint (a mimic joint counts
+    as the joint it follows), its start every planned joint.
 
     Raises:
         PrehensileError: naming the request file, the joints at fault and the planned ones.
@@ -152,16 +153,25 @@ def check_goal(model: RobotModel, problem: MBMProblem, joints: Sequence[str]) ->
     request = problem.request
     where = f"{request.source}: goal_constraints[0].joint_constraints"
     planned = ", ".join(joints)
-    unknown = [j for j in request.goal if j not in model.joint_names]
+    mimics = model.mimic_joints
+    known = [*model.joint_names, *mimics]
+    unknown = [j for j in request.goal if j not in known]
     if unknown:
         raise PrehensileError(f"{where}: robot '{model.name}' has no joint {', '.join(unknown)} (planned: {planned})")
-    outside = [j for j in request.goal if j not in joints]
+    outside = [j for j in request.goal if (model.joint_names[mimics[j][0]] if j in mimics else j) not in joints]
     if outside:
         raise PrehensileError(f"{where}: {', '.join(outside)} not in the planned group '{request.group}' "
                               f"(planned: {planned})")
     missing = [j for j in joints if j not in request.goal]
     if missing:
         raise PrehensileError(f"{where}: no goal for planned joint(s) {', '.join(missing)} (planned: {planned})")
+    missing = [j for j in joints if j not in request.start]
+    if missing:
+        unknown = [j for j in request.start if j not in known]
+        raise PrehensileError(f"{request.source}: start_state.joint_state: no start for planned joint(s) "
+                              f"{', '.join(missing)}"
+                              + (f"; robot '{model.name}' has no joint {', '.join(unknown)}" if unknown else "")
+                              + f" (planned: {planned})")
 
 
 class PreparedProblem:
@@ -173,7 +183,7 @@ class PreparedProblem:
 
         self.problem = problem
         joints = planned_joints(model, problem)
-        check_goal(model, problem, joints)
+        check_request(model, problem, joints)
         self.q_start, self.q_goal = _clip_unplanned(model, problem, joints)
         T_world_base = problem.scene.robots[0].T_world_base if problem.scene.robots else None
         self.ctx = PlanningContext(model, problem.scene.collision_obstacles(), joints=joints,
@@ -203,10 +213,10 @@ def check_problems(model: RobotModel, problems: Sequence[MBMProblem]) -> None:
     """Check every problem's planned joints, start and goal before any is planned.
 
     Raises:
-        PrehensileError: naming the first request at fault (see :func:`check_goal`).
+        PrehensileError: naming the first request at fault (see :func:`check_request`).
     """
     for problem in problems:
-        check_goal(model, problem, planned_joints(model, problem))
+        check_request(model, problem, planned_joints(model, problem))
         problem.request.goal_configuration(model)  # and the start it builds on
 
 

@@ -202,6 +202,15 @@ class RobotModel:
                   or self.joint_offset[index] != 0.0)
         return leader if mimics else None
 
+    @cached_property
+    def mimic_joints(self) -> Mapping[str, tuple[int, float, float]]:
+        """Mimic joint name -> (q index of the joint it follows, multiplier, offset): its value
+        is ``multiplier * q[index] + offset`` (rad or m)."""
+        return MappingProxyType({
+            self.link_joint_names[link]: (int(self.joint_q_index[link]), float(self.joint_multiplier[link]),
+                                          float(self.joint_offset[link]))
+            for link in range(self.n_links) if self.mimic_of(link) is not None})
+
     def neutral_configuration(self) -> np.ndarray:
         """Zero clipped into the limits, shape (dof,)."""
         return np.clip(np.zeros(self.dof), self.lower, self.upper)

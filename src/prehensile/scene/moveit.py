@@ -51,6 +51,7 @@ log = logging.getLogger(__name__)
 
 _PRIMITIVE_IDS = {1: "box", 2: "sphere", 3: "cylinder", 4: "cone", 5: "prism"}
 _WORLD_FRAMES = ("", "world", "/world")
+MIMIC_TOLERANCE = 1e-6  # rad or m: how far a mimic joint's given value may be from the one it follows
 _PROBLEM_FILE = re.compile(r"^(scene|request)(\d+)\.ya?ml$")
 
 
@@ -312,12 +313,22 @@ def _placed_robot(state: Any, model: RobotModel, where: str) -> PlacedRobot:
 
 
 def _configuration(model: RobotModel, values: Mapping[str, float], base, where: str, strict: bool) -> np.ndarray:
-    unknown = [joint for joint in values if joint not in model.joint_names]
+    """q (dof,): ``base`` (None: neutral) with the joints of ``values`` set. A mimic joint's
+    value must agree with the joint it follows (within :data:`MIMIC_TOLERANCE`)."""
+    mimics = model.mimic_joints
+    unknown = [joint for joint in values if joint not in model.joint_names and joint not in mimics]
     if (strict and unknown) or (values and len(unknown) == len(values)):
         raise SceneError(
             f"{where}: robot '{model.name}' has no joint '{unknown[0]}'; joints: {', '.join(model.joint_names)}"
         )
-    return model.configuration_from_dict({j: v for j, v in values.items() if j not in unknown}, base)
+    q = model.configuration_from_dict({j: v for j, v in values.items() if j in model.joint_names}, base)
+    for joint in [j for j in values if j in mimics]:
+        leader, multiplier, offset = mimics[joint]
+        follows = multiplier * q[leader] + offset
+        if abs(values[joint] - follows) > MIMIC_TOLERANCE:
+            raise SceneError(f"{where}: mimic joint '{joint}' = {values[joint]:.6g} disagrees with the joint it "
+                             f"follows: {multiplier:g} * {model.joint_names[leader]} + {offset:g} = {follows:.6g}")
+    return q
 
 
 def _joint_state(state: Any, where: str) -> dict[str, float]:
