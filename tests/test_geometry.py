@@ -46,3 +46,19 @@ def test_a_mirrored_mesh_is_the_mirror_image_with_outward_faces(scale):
         assert mesh.volume == pytest.approx(plain.volume * abs(np.prod(scale)))  # signed: > 0
         outward = np.einsum("ij,ij->i", mesh.face_normals, mesh.triangles_center - mesh.vertices.mean(axis=0))
         assert np.all(outward > 0)  # the wedge is convex: every face looks away from its centre
+
+
+@pytest.mark.parametrize("unit, factor", [(None, 1.0), (1.0, 1.0), (0.001, 0.001), (0.0254, 0.0254)])
+def test_collada_meshes_are_read_in_metres(tmp_path, unit, factor):
+    """A COLLADA file's <unit meter="..."> scales its vertices to metres, as ROS tools read it."""
+    import re
+
+    import trimesh
+
+    text = trimesh.exchange.dae.export_collada(trimesh.creation.box((2.0, 4.0, 6.0)))
+    text = text.decode() if isinstance(text, bytes) else text
+    if unit is not None:
+        text = re.sub(r"<asset>", f'<asset><unit meter="{unit}" name="u"/>', text, count=1)
+    (tmp_path / "box.dae").write_text(text)
+    mesh = Mesh(str(tmp_path / "box.dae"), (1.0, 2.0, 1.0)).trimesh
+    np.testing.assert_allclose(mesh.extents, np.array([2.0, 8.0, 6.0]) * factor)

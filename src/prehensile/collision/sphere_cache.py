@@ -26,7 +26,7 @@ from prehensile.storage import atomic_write_bytes
 if TYPE_CHECKING:
     from prehensile.collision.spheres import SphereModel
 
-FORMAT_VERSION = 5  # bump whenever the fitting algorithm or the stored arrays change
+FORMAT_VERSION = 6  # bump whenever the fitting algorithm or the stored arrays change
 log = logging.getLogger(__name__)
 
 

@@ -119,6 +119,8 @@ class Mesh:
                                  "formats: STL, OBJ, PLY, OFF, DAE, GLB") from None
             if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
                 raise ModelError(f"mesh {self.path}: no triangles")
+            if loaded.units not in (None, "m", "meters"):  # a COLLADA file's <unit>, as ROS tools read it
+                loaded.convert_units("meters")
         mesh = loaded.copy()
         mesh.apply_scale(np.asarray(self.scale, dtype=float))  # reverses the winding of a mirror image
         return mesh
