@@ -19,7 +19,8 @@ from prehensile.kinematics.forward import forward_kinematics
 from prehensile.model.builder import JointSpec, LinkSpec, build_model
 from prehensile.model.geometry import Box, Capsule, Geometry, Mesh, Sphere
 from prehensile.planning import (
-    AttachedObject, ElasticBandSettings, PlanningContext, PlanStatus, RRTConnectSearch, RRTConnectSettings,
+    AttachedObject, ElasticBandSettings, PlanningContext, PlanResult, PlanStats, PlanStatus, RRTConnectSearch,
+    RRTConnectSettings,
     certify_path, elastic_band, rrt_connect, shortcut,
 )
 from prehensile.clock import clock
@@ -805,3 +806,25 @@ def test_bad_context_inputs_are_errors(arm, kwargs, message):
     kwargs = {"obstacles": [], **kwargs}
     with pytest.raises(PrehensileError, match=message):
         PlanningContext(model, kwargs.pop("obstacles"), spheres=spheres, **kwargs)
+
+
+def test_a_timeout_names_links_whose_balls_overlap_almost_everywhere(arm):
+    """Balls on the base that reach every pose of l2 (whose geometry never comes near it) leave
+    no free configuration; a timeout says so, with how often the geometry collides."""
+    model, spheres = arm
+    fat = spheres.radii.copy()
+    fat[spheres.sphere_link == model.link_index("base")] = 0.9
+    ctx = PlanningContext(model, [], spheres=SphereModel(spheres.link_names, spheres.sphere_link, spheres.centers, fat))
+    q = np.array([[0.0, 0.0, 0.0], [1.0, -2.0, 2.0]])
+    overlaps = ctx.spheres.link_overlaps(q)
+    for k in range(len(q)):
+        names = model.link_names
+        assert [(names[a], names[b]) for a, b in np.argwhere(overlaps[k])] == ctx.spheres.ball_contacts(q[k])
+    assert ctx.overlapping_links() == [("base", "l2", 64, 0), ("base", "l3", 64, 0)]
+    timeout = PlanResult(PlanStatus.TIMEOUT, np.zeros((0, 3)), PlanStats(iterations=10))
+    reason = ctx.explain(timeout, q[0], q[1]).info["reason"]
+    assert reason.startswith("the balls of base and l2 overlap in 64 of 64 random configurations (their geometry "
+                             "collides in 0); the balls of base and l3 overlap in 64 of 64"), reason
+    assert "disable such a pair in the SRDF" in reason
+    plain = PlanningContext(model, [], spheres=spheres)
+    assert plain.overlapping_links() == [] and "reason" not in plain.explain(timeout, q[0], q[1]).info

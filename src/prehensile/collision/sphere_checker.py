@@ -241,19 +241,31 @@ class SphereChecker:
         """Where the balls collide at one configuration q (dof,): (link, other link) for each
         pair of links the ACM does not skip whose balls overlap, and (link, "world") for each
         link whose balls meet an obstacle (links on the root body only if :attr:`static_hit`)."""
-        q = self.model.check_configuration(q)
-        s, names = self.spheres, self.model.link_names
-        T = forward_kinematics(self.model, q, self.T_world_base)[s.sphere_link]
-        c = np.einsum("nij,nj->ni", T[:, :3, :3], s.centers) + T[:, :3, 3]
-        gap = np.linalg.norm(c[:, None] - c[None], axis=-1) - s.radii[:, None] - s.radii[None]
-        la, lb = np.broadcast_arrays(s.sphere_link[:, None], s.sphere_link[None])
-        hit = (gap < 0) & (la < lb) & ~self.acm[la, lb]
-        pairs = sorted({(int(a), int(b)) for a, b in zip(la[hit], lb[hit])})
-        out = [(names[a], names[b]) for a, b in pairs]
+        q = self.model.check_one(q, "ball_contacts")
+        names = self.model.link_names
+        out = [(names[a], names[b]) for a, b in np.argwhere(self.link_overlaps(q[None])[0])]
         tested = self.data[14] | self.static_hit  # the root body's balls count where static_hit says so
         for g in np.flatnonzero(tested):
             if self._hits_world(q, np.arange(len(tested)) == g):
                 out.append((names[self.group_links[g]], "world"))
+        return out
+
+    def link_overlaps(self, q: np.ndarray) -> np.ndarray:
+        """(B, L, L) bool for configurations q (B, dof): ``[k, a, b]`` = some ball of link a
+        overlaps some ball of link b > a at q[k] (pairs the ACM skips are False)."""
+        q = self.model.check_configuration(q).reshape(-1, self.model.dof)
+        s, n_links = self.spheres, self.model.n_links
+        T = forward_kinematics(self.model, q, self.T_world_base)[:, s.sphere_link]
+        c = np.einsum("bnij,nj->bni", T[..., :3, :3], s.centers) + T[..., :3, 3]
+        la, lb = np.broadcast_arrays(s.sphere_link[:, None], s.sphere_link[None])
+        i, j = np.nonzero((la < lb) & ~self.acm[la, lb])  # the ball pairs tested
+        a, b, reach2 = s.sphere_link[i], s.sphere_link[j], (s.radii[i] + s.radii[j]) ** 2
+        out = np.zeros((len(q), n_links, n_links), dtype=bool)
+        chunk = max(1, 2**22 // max(3 * len(i), 1))  # configurations per (chunk, pairs, 3) table
+        for first in range(0, len(q), chunk):
+            d = c[first:first + chunk, i] - c[first:first + chunk, j]
+            k, p = np.nonzero(np.einsum("bpx,bpx->bp", d, d) < reach2)
+            out[first + k, a[p], b[p]] = True
         return out
 
     def _batch(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

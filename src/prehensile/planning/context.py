@@ -36,11 +36,13 @@ from prehensile.ik.jacobian import free_joint_indices
 from prehensile.model.geometry import Geometry, Shape
 from prehensile.model.robot_model import FIXED, PRISMATIC, REVOLUTE, RobotModel
 from prehensile.planning.cspace import ConfigurationSpace
-from prehensile.planning.result import PlanResult
+from prehensile.planning.result import PlanResult, PlanStatus
 from prehensile.spatial.transforms import check_one_pose
 
 EXPLAINED_GOALS = 5  # goals of a goal set whose rejection PlanningContext.explain puts in words
 MIN_RESOLUTION = 1e-5  # m: finer checks only cost memory (the bisection queue) and time
+OVERLAP_SAMPLES = 64  # random configurations PlanningContext.overlapping_links tests
+OVERLAP_SHARE = 0.9  # a link pair whose balls overlap in more of them than this share is reported
 
 
 def check_resolution(value: float, what: str) -> float:
@@ -330,6 +332,7 @@ class PlanningContext:
         """Balls covering the geometry, objects included (for the certifier's bounds), or None."""
         self._refine_args = (joints, q_ref, acm)
         self._refined: dict[frozenset, PlanningContext] = {}
+        self._overlapping: list[tuple[str, str, int, int]] | None = None
 
     def _static_pairs(self) -> np.ndarray:
         """(K, 2) link pairs (ACM-allowed ones left out) with the same planned joints on their
@@ -503,12 +506,33 @@ class PlanningContext:
                     "(RRTConnectSettings.escape)")
         return ""
 
+    def overlapping_links(self) -> list[tuple[str, str, int, int]]:
+        """Link pairs whose balls overlap almost everywhere: in more than :data:`OVERLAP_SHARE`
+        of :data:`OVERLAP_SAMPLES` uniform samples of the planned joints (seed 0; the others at
+        ``q_ref``), as (link, other link, samples where their balls overlap, samples where
+        their exact geometry collides). Such a pair leaves a planner almost no free
+        configuration: balls too coarse for links that nest closely, or a pair that cannot
+        touch and is not disabled. Computed once per context."""
+        if self._overlapping is None:
+            q = np.repeat(self.space.q_ref[None], OVERLAP_SAMPLES, axis=0)
+            lower, upper = self.model.sampling_limits(self.space.indices)
+            q[:, self.space.indices] = np.random.default_rng(0).uniform(lower, upper, (OVERLAP_SAMPLES, len(lower)))
+            counts = self.spheres.link_overlaps(q).sum(axis=0)
+            pairs = np.argwhere(counts > OVERLAP_SHARE * OVERLAP_SAMPLES)
+            names = self.collision_model.link_names
+            contacts = [{frozenset((link, other)) for link, other, _ in self.exact.collisions(qk, kind="self")}
+                        for qk in (q if len(pairs) else ())]
+            self._overlapping = [(names[a], names[b], int(counts[a, b]),
+                                  sum(frozenset((names[a], names[b])) in c for c in contacts)) for a, b in pairs]
+        return self._overlapping
+
     def explain(self, result: PlanResult, q_start: np.ndarray, q_goal: np.ndarray | None = None) -> PlanResult:
         """``result`` with ``info["reason"]``: why its :attr:`~PlanResult.blamed_ends` are
         unusable (:meth:`why_invalid`), "start: ...; goal: ..." ("goal 2: ..." for row 2 of a
         goal set (k, dof): the first :data:`EXPLAINED_GOALS` of those :meth:`is_valid` rejects,
-        then how many more); unchanged if none of them has a reason. q_start (dof,), q_goal
-        (dof,) or (k, dof) as given to the planner (None: no goal configuration)."""
+        then how many more); for a TIMEOUT also the link pairs whose balls overlap almost
+        everywhere (:meth:`overlapping_links`); unchanged if there is no reason. q_start (dof,),
+        q_goal (dof,) or (k, dof) as given to the planner (None: no goal configuration)."""
         ends, more = [("start", q_start)] if "start" in result.blamed_ends else [], 0
         if "goal" in result.blamed_ends and q_goal is not None:
             if np.ndim(q_goal) == 1:
@@ -521,6 +545,11 @@ class PlanningContext:
         reasons = [f"{name}: {why}" for name, q in ends if (why := self.why_invalid(q))]
         if more:
             reasons.append(f"{more} more goals rejected")
+        if result.status is PlanStatus.TIMEOUT and self.overlapping_links():
+            pairs = "; ".join(f"the balls of {a} and {b} overlap in {n} of {OVERLAP_SAMPLES} random configurations "
+                              f"(their geometry collides in {exact})" for a, b, n, exact in self.overlapping_links())
+            reasons.append(f"{pairs}: the sphere model leaves almost no free configuration (disable such a pair in "
+                           "the SRDF if its links cannot touch, else give finer balls)")
         return dataclasses.replace(result, info={**result.info, "reason": "; ".join(reasons)}) if reasons else result
 
     def check_motion(self, qa: np.ndarray, qb: np.ndarray, resolution: float | None = None) -> bool:
