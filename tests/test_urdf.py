@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import logging
+
 import numpy as np
 import pytest
 
@@ -127,13 +129,23 @@ def test_malformed_urdf_names_file_element_and_problem(tmp_path, edit, message):
     assert str(path) in str(error.value) and message in str(error.value)
 
 
-def test_missing_file_and_bad_srdf(tmp_path):
+def test_missing_file_and_srdf_slips_that_moveit_tolerates(tmp_path, caplog):
     with pytest.raises(ModelError, match="file not found"):
         load_urdf(tmp_path / "absent.urdf")
     write(tmp_path, ARM)
-    srdf = write(tmp_path, '<robot><disable_collisions link1="base" link2="ghost"/></robot>', "bad.srdf")
-    with pytest.raises(ModelError, match="bad.srdf: disable_collisions names unknown link 'ghost'"):
-        load_urdf(tmp_path / "robot.urdf", srdf)
+    srdf = write(tmp_path, '<robot><disable_collisions link1="base" link2="ghost"/>'
+                           '<disable_collisions link1="base" link2="slider"/>'
+                           '<group name="g"><joint name="finger_a"/></group><group_state name="open" group="g">'
+                           '<joint name="finger_a" value="9"/></group_state>'
+                           '<end_effector name="e" parent_link="slider" group="g"/></robot>', "slips.srdf")
+    with caplog.at_level(logging.WARNING, logger="prehensile.model.srdf"):
+        model = load_urdf(tmp_path / "robot.urdf", srdf)
+    assert model.disabled_collision_pairs == {frozenset(("base", "slider"))}
+    index = model.joint_index("finger_a")
+    assert model.end_effectors["e"].preshapes["open"] == {"finger_a": model.upper[index]}
+    assert "slips.srdf: disable_collisions of base and ghost skipped: robot 'arm' has no link 'ghost'" in caplog.text
+    assert (f"slips.srdf: group_state 'open': joint 'finger_a' = 9 is outside its limits [{model.lower[index]:g}, "
+            f"{model.upper[index]:g}], clipped into them") in caplog.text
 
 
 @pytest.mark.parametrize("body, message", [
@@ -141,8 +153,6 @@ def test_missing_file_and_bad_srdf(tmp_path):
      "group 'm' <chain> names unknown link 'nope'"),
     ('<group name="m"><chain tip_link="slider"/></group>', "group 'm' <chain>: missing attribute 'base_link'"),
     ('<group name="m"><chain base_link="slider" tip_link="base"/></group>', "is not an ancestor of tip 'base'"),
-    ('<group name="g"><joint name="finger_a"/></group><group_state name="open" group="g">'
-     '<joint name="finger_a" value="9"/></group_state>', "joint 'finger_a' = 9 is outside its limits"),
     ('<group name="g"><joint name="finger_a"/></group><group_state name="open" group="g">'
      '<joint name="thumb" value="0"/></group_state>', "group_state 'open': unknown joint 'thumb'; joints: shoulder"),
     ('<group_state name="open" group="hand"/>', "group_state 'open': unknown group 'hand'; groups: (none)"),

@@ -1,15 +1,23 @@
 """SRDF reader: planning groups become chains, end effectors with their group states as
-preshapes, and disabled collision pairs."""
+preshapes, and disabled collision pairs.
+
+Like MoveIt, it tolerates two slips common in published SRDFs with a warning: a disabled pair
+naming a link the robot lacks is skipped, and a group state's value outside its joint's limits
+is clipped into them. Everything else it does not understand is an error.
+"""
 
 from __future__ import annotations
 
 import dataclasses
+import logging
 from pathlib import Path
 
 from prehensile.errors import ModelError
 from prehensile.model.builder import resolve_chain
 from prehensile.model.robot_model import Chain, EndEffector, RobotModel
 from prehensile.model.xml_utils import number, parse_xml, required
+
+log = logging.getLogger(__name__)
 
 
 def _group_joints(model: RobotModel, groups: dict, name: str, source: str, seen: tuple = ()) -> list[str]:
@@ -60,16 +68,18 @@ def _group_name(groups: dict, name: str, where: str) -> str:
     return name
 
 
-def _check_state_value(model: RobotModel, joint: str, value: float, where: str) -> None:
-    """A group state's joint must be a joint of the model; an actuated one's value within its limits."""
+def _state_value(model: RobotModel, joint: str, value: float, where: str) -> float:
+    """A group state's value of ``joint``, which must be a joint of the model; an actuated
+    one's value is clipped into its limits (with a warning)."""
     if joint not in model.joint_names:
         if joint not in model.link_joint_names:
             raise ModelError(f"{where}: unknown joint '{joint}'; joints: {', '.join(model.joint_names)}")
-        return  # a mimic or fixed joint, as in a group's <joint>: its value follows
+        return value  # a mimic or fixed joint, as in a group's <joint>: its value follows
     i = model.joint_index(joint)
     if not model.lower[i] - 1e-9 <= value <= model.upper[i] + 1e-9:
-        raise ModelError(f"{where}: joint '{joint}' = {value:g} is outside its limits "
-                         f"[{model.lower[i]:g}, {model.upper[i]:g}]")
+        log.warning("%s: joint '%s' = %g is outside its limits [%g, %g], clipped into them", where, joint, value,
+                    model.lower[i], model.upper[i])
+    return min(max(value, float(model.lower[i])), float(model.upper[i]))
 
 
 def apply_srdf(model: RobotModel, path: str | Path) -> RobotModel:
@@ -88,8 +98,7 @@ def apply_srdf(model: RobotModel, path: str | Path) -> RobotModel:
     for el in root.findall("group_state"):
         where = f"{source}: group_state '{el.get('name')}'"
         values = {required(j, "name", where): number(j, "value", where) for j in el.findall("joint")}
-        for joint, value in values.items():
-            _check_state_value(model, joint, value, where)
+        values = {joint: _state_value(model, joint, value, where) for joint, value in values.items()}
         states.setdefault(_group_name(groups, required(el, "group", where), where), {})[
             required(el, "name", where)] = values
 
@@ -121,10 +130,10 @@ def apply_srdf(model: RobotModel, path: str | Path) -> RobotModel:
     for el in root.findall("disable_collisions"):
         where = f"{source}: disable_collisions"
         a, b = required(el, "link1", where), required(el, "link2", where)
-        for link in (a, b):
-            if link not in model.link_names:
-                raise ModelError(f"{where} names unknown link '{link}'")
-        if a != b:
+        unknown = [link for link in (a, b) if link not in model.link_names]
+        if unknown:
+            log.warning("%s of %s and %s skipped: robot '%s' has no link '%s'", where, a, b, model.name, unknown[0])
+        elif a != b:
             disabled.add(frozenset((a, b)))
     return dataclasses.replace(
         model, chains=chains, end_effectors=end_effectors, disabled_collision_pairs=frozenset(disabled),
