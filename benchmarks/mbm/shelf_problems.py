@@ -21,6 +21,7 @@ import yaml
 
 from prehensile import robots
 from prehensile.collision.world import Obstacle
+from prehensile.errors import PrehensileError
 from prehensile.kinematics.forward import link_pose
 from prehensile.model.geometry import Box
 from prehensile.planning import PlanningContext
@@ -52,6 +53,20 @@ def problem(model, group: str, ctx: PlanningContext, rng: np.random.Generator, t
     return None
 
 
+def why_no_free_configuration(model, group: str, rng: np.random.Generator, tries: int = 200) -> str:
+    """"" if one of ``tries`` random configurations of the group (the other joints neutral) is
+    valid without obstacles, on the balls and the exact geometry; else why the first is not."""
+    ctx = PlanningContext(model, [], joints=list(model.chain(group).joint_names), q_ref=model.neutral_configuration())
+    arm, first = model.chain_q_indices(group), None
+    for _ in range(tries):
+        q = ctx.space.q_ref.copy()
+        q[arm] = model.random_configurations(rng)[arm]
+        if ctx.is_valid(q) and ctx.exact.is_free(q):
+            return ""
+        first = q if first is None else first
+    return ctx.why_invalid(first) or "; ".join(f"{a} with {b}" for a, b in ctx.spheres.ball_contacts(first))
+
+
 def write(folder: Path, k: int, model, group: str, obstacles: list[Obstacle], yaw: float, start: np.ndarray,
           goal: np.ndarray) -> None:
     names = list(model.joint_names)
@@ -65,6 +80,7 @@ def write(folder: Path, k: int, model, group: str, obstacles: list[Obstacle], ya
     request = {"group_name": group, "start_state": {"joint_state": {"name": names, "position": start.tolist()}},
                "goal_constraints": [{"joint_constraints": [{"joint_name": j, "position": float(goal[names.index(j)])}
                                                            for j in joints]}]}
+    folder.mkdir(parents=True, exist_ok=True)
     (folder / f"scene{k:04d}.yaml").write_text(yaml.safe_dump(scene))
     (folder / f"request{k:04d}.yaml").write_text(yaml.safe_dump(request))
 
@@ -72,6 +88,7 @@ def write(folder: Path, k: int, model, group: str, obstacles: list[Obstacle], ya
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("robot", help="bundled robot name or robot file")
+    parser.add_argument("--srdf", type=Path, help="SRDF of the robot (default: <stem>.srdf next to its file)")
     parser.add_argument("group", help="SRDF group (chain) to plan")
     parser.add_argument("out", type=Path, help="output folder (problems go to OUT/shelf_ROBOT_GROUP/)")
     parser.add_argument("--count", type=int, default=10, help="problems to write")
@@ -84,9 +101,16 @@ def main() -> None:
     args = parser.parse_args()
     if args.count < 1 or args.scenes < 1:
         parser.error("--count and --scenes must be at least 1")
-    model = robots.load(args.robot)
-    if args.group not in model.chains:
-        parser.error(f"robot '{model.name}' has no group '{args.group}'; groups: {', '.join(model.chains)}")
+    try:
+        model = robots.load(args.robot, srdf=args.srdf)
+        if args.group not in model.chains:
+            parser.error(f"robot '{model.name}' has no group '{args.group}'; groups: {', '.join(model.chains)}")
+        why = why_no_free_configuration(model, args.group, np.random.default_rng(args.seed))
+    except PrehensileError as error:  # a robot file or mesh that does not load
+        raise SystemExit(f"error: {error}") from None
+    if why:
+        raise SystemExit(f"error: no random configuration of group '{args.group}' is valid even without obstacles "
+                         f"(the other joints neutral); the first: {why}")
     chain = model.chain(args.group)
     base = link_pose(model, model.neutral_configuration(), chain.base_link)[:3, 3]
     forward = np.array([args.forward[0], args.forward[1], 0.0])
@@ -94,7 +118,6 @@ def main() -> None:
         parser.error("--forward must be a nonzero horizontal direction")
     forward /= np.linalg.norm(forward)
     folder = args.out / f"shelf_{model.name}_{args.group}"
-    folder.mkdir(parents=True, exist_ok=True)
     yaw = float(np.arctan2(forward[1], forward[0]) - np.pi / 2)
     rng, k = np.random.default_rng(args.seed), 0
     for _ in range(args.scenes * args.count):
@@ -107,7 +130,8 @@ def main() -> None:
         if ends is not None:
             k += 1
             write(folder, k, model, args.group, obstacles, yaw, *ends)
-    print(f"wrote {k} problems to {folder}")
+    if k:
+        print(f"wrote {k} problems to {folder}")
     if k < args.count:
         raise SystemExit(f"found only {k} of {args.count} problems in {args.scenes * args.count} scenes: the start and "
                          "goal must be free and their straight motion blocked; try another --distance, --drop or "
