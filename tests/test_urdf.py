@@ -173,3 +173,29 @@ def test_mbm_panda_meshes_resolve():
     meshes = [g.shape for geoms in model.collisions for g in geoms]
     assert meshes and all(isinstance(m, Mesh) and m.path.is_file() for m in meshes)
     assert model.dof == 7 and model.chain("panda_arm").tip_link == "panda_link8"
+
+
+def test_packages_are_found_by_their_manifest_and_missing_visual_meshes_left_out(tmp_path, caplog):
+    """A package checked out under another folder name is found by its package.xml; a visual
+    mesh that is missing only costs the picture, a missing collision mesh is an error."""
+    import shutil
+
+    package = tmp_path / "arm_description-main"
+    (package / "meshes").mkdir(parents=True)
+    (package / "urdf").mkdir()
+    (package / "package.xml").write_text('<?xml version="1.0"?><package format="3">\n  <name> arm_description </name>'
+                                         "\n  <version>1.0.0</version></package>")
+    shutil.copy(WEDGE, package / "meshes" / "wedge.obj")
+    link = ('<link name="tool"><visual><geometry><mesh filename="package://arm_description/meshes/{visual}"/>'
+            '</geometry></visual><collision><geometry><mesh filename="package://arm_description/meshes/{collision}"/>'
+            '</geometry></collision></link><joint name="tool" type="fixed"><parent link="slider"/>'
+            '<child link="tool"/></joint></robot>')
+    path = write(package / "urdf", ARM.replace("</robot>", link.format(visual="gone.dae", collision="wedge.obj")))
+    with caplog.at_level(logging.WARNING, logger="prehensile.model.urdf"):
+        model = load_urdf(path)
+    tool = model.link_index("tool")
+    assert model.collisions[tool][0].shape.path == package / "meshes" / "wedge.obj" and not model.visuals[tool]
+    assert "link 'tool' <visual> #0 <mesh>: file 'package://arm_description/meshes/gone.dae' not found" in caplog.text
+    missing = write(package / "urdf", ARM.replace("</robot>", link.format(visual="wedge.obj", collision="gone.stl")))
+    with pytest.raises(ModelError, match="link 'tool' <collision> #0 <mesh>: file .*gone.stl' not found"):
+        load_urdf(missing)

@@ -8,6 +8,7 @@ robot with a scene base pose instead.
 
 from __future__ import annotations
 
+import logging
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -20,6 +21,8 @@ from prehensile.model.resources import resolve_uri
 from prehensile.model.robot_model import RobotModel
 from prehensile.model.xml_utils import floats, number, parse_xml, required
 from prehensile.spatial import make_pose, rpy_to_matrix
+
+log = logging.getLogger(__name__)
 
 
 def _origin(element: ET.Element | None, where: str) -> np.ndarray:
@@ -37,7 +40,9 @@ def _size(value: float, where: str, zero: bool = False) -> float:
     return value
 
 
-def _geometry(element: ET.Element, base_dir: Path, where: str) -> Geometry | None:
+def _geometry(element: ET.Element, base_dir: Path, where: str, visual: bool = False) -> Geometry | None:
+    """The shape of a <visual> or <collision> element; None for a visual whose mesh file is
+    missing (with a warning: only pictures use visuals)."""
     geometry = element.find("geometry")
     if geometry is None or len(geometry) == 0:
         raise ModelError(f"{where}: missing <geometry>")
@@ -54,7 +59,13 @@ def _geometry(element: ET.Element, base_dir: Path, where: str) -> Geometry | Non
         length = _size(number(shape_el, "length", w), f"{w} length", zero=tag == "capsule")  # 0: a ball
         shape = Cylinder(radius, length) if tag == "cylinder" else Capsule(radius, length)
     elif tag == "mesh":
-        path = resolve_uri(required(shape_el, "filename", w), base_dir, w)
+        try:
+            path = resolve_uri(required(shape_el, "filename", w), base_dir, w)
+        except ModelError as error:
+            if not visual:
+                raise
+            log.warning("%s; the visual is left out", error)
+            return None
         scale = floats(shape_el.get("scale"), 3, f"{w} scale", [1.0, 1.0, 1.0])
         if not np.all(np.asarray(scale) != 0.0):  # negative mirrors; zero flattens the mesh
             raise ModelError(f"{w} scale: every factor must be non-zero, got {' '.join(map(str, scale))}")
@@ -70,7 +81,9 @@ def _link(element: ET.Element, base_dir: Path, source: str) -> LinkSpec:
     link = LinkSpec(name)
     for kind, target in (("visual", link.visuals), ("collision", link.collisions)):
         for i, el in enumerate(element.findall(kind)):
-            target.append(_geometry(el, base_dir, f"{where} <{kind}> #{i}"))
+            geometry = _geometry(el, base_dir, f"{where} <{kind}> #{i}", visual=kind == "visual")
+            if geometry is not None:
+                target.append(geometry)
     return link
 
 
