@@ -14,6 +14,7 @@ for an arm of about 0.5-1 m reach. Problems go to OUT/shelf_ROBOT_GROUP/.
 from __future__ import annotations
 
 import argparse
+from itertools import islice
 from pathlib import Path
 
 import numpy as np
@@ -40,28 +41,29 @@ def shelf(table: np.ndarray, yaw: float) -> list[Obstacle]:
             for name, (offset, size) in BOXES.items()]
 
 
-def problem(model, group: str, ctx: PlanningContext, rng: np.random.Generator, tries: int = 2000):
-    """(start, goal) (dof,) valid on the exact geometry, with a blocked straight motion; None if not found."""
-    arm, ends = model.chain_q_indices(group), []
+def samples(model, group: str, ctx: PlanningContext, rng: np.random.Generator, tries: int):
+    """Up to ``tries`` random configurations (dof,) of the group, the other joints at the
+    context's ``q_ref``, each with whether it is valid on the balls and free on the exact geometry."""
+    arm = model.chain_q_indices(group)
     for _ in range(tries):
         q = ctx.space.q_ref.copy()
         q[arm] = model.random_configurations(rng)[arm]
-        if ctx.is_valid(q) and ctx.exact.is_free(q):
-            ends.append(q)
-            if len(ends) == 2:
-                return None if ctx.check_motion(*ends) else tuple(ends)
-    return None
+        yield q, bool(ctx.is_valid(q) and ctx.exact.is_free(q))
+
+
+def problem(model, group: str, ctx: PlanningContext, rng: np.random.Generator, tries: int = 2000):
+    """(start, goal) (dof,) valid on the exact geometry, with a blocked straight motion; None if not found."""
+    ends = list(islice((q for q, valid in samples(model, group, ctx, rng, tries) if valid), 2))
+    return None if len(ends) < 2 or ctx.check_motion(*ends) else tuple(ends)
 
 
 def why_no_free_configuration(model, group: str, rng: np.random.Generator, tries: int = 200) -> str:
     """"" if one of ``tries`` random configurations of the group (the other joints neutral) is
-    valid without obstacles, on the balls and the exact geometry; else why the first is not."""
+    valid without obstacles; else why the first is not."""
     ctx = PlanningContext(model, [], joints=list(model.chain(group).joint_names), q_ref=model.neutral_configuration())
-    arm, first = model.chain_q_indices(group), None
-    for _ in range(tries):
-        q = ctx.space.q_ref.copy()
-        q[arm] = model.random_configurations(rng)[arm]
-        if ctx.is_valid(q) and ctx.exact.is_free(q):
+    first = None
+    for q, valid in samples(model, group, ctx, rng, tries):
+        if valid:
             return ""
         first = q if first is None else first
     return ctx.why_invalid(first) or "; ".join(f"{a} with {b}" for a, b in ctx.spheres.ball_contacts(first))
