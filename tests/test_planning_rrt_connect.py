@@ -791,6 +791,29 @@ def test_a_robot_standing_on_a_table_plans():
             assert ctx.why_invalid(ready) == "panda_link0 collides with table (5.0 mm deep)"
 
 
+def test_a_humanoid_standing_on_the_floor_plans_an_arm():
+    """NAO's feet do not move when it plans its left arm: their balls, which reach into the
+    floor, are left out; the exact geometry tells standing 1 mm above the floor from standing
+    in it."""
+    nao = robots.load("nao")
+    q = nao.neutral_configuration()
+    for joint, value in dict(LShoulderPitch=1.0, LShoulderRoll=0.3, LElbowRoll=-0.3, RShoulderPitch=1.0,
+                             RShoulderRoll=-0.3, RElbowRoll=0.3).items():
+        q[nao.joint_index(joint)] = value
+    goal = q.copy()
+    goal[nao.joint_index("LShoulderPitch")] = -0.3
+    floor = _box("floor", [0.0, 0.0, -0.05], [2.0, 2.0, 0.1])
+    for height, free in ((0.334, True), (0.328, False)):  # the soles 1 mm above the floor, 5 mm in it
+        ctx = PlanningContext(nao, [floor], joints="left_arm", q_ref=q, T_world_base=make_pose(position=[0, 0, height]))
+        assert ctx.still_links[nao.link_index("l_ankle")] and not ctx.still_links[nao.link_index("LBicep")]
+        assert bool(ctx.static_free(q)) == free and ctx.exact.is_free(q) == free
+        result = rrt_connect(ctx, q, goal, FAST, np.random.default_rng(0))
+        if free:
+            _check_result(ctx, result, q, goal)
+        else:
+            assert result.status is PlanStatus.INVALID_START and "collides with floor" in ctx.why_invalid(q)
+
+
 @pytest.mark.parametrize("kwargs, message", [
     ({"obstacles": [Box((0.1, 0.1, 0.1))]}, r"obstacles\[0\]: expected an Obstacle"),
     ({"obstacles": [Obstacle("empty", Mesh.from_arrays(np.zeros((0, 3)), np.zeros((0, 3))), np.eye(4))]},

@@ -181,11 +181,15 @@ class SphereChecker:
         mesh_boxes: oriented boxes per mesh obstacle (:func:`obstacle_arrays`).
         static_hit: whether the robot's root body meets an obstacle, if known (from the exact
             geometry: the balls only bound it); None: decided by the root body's balls.
+        still: (L,) bool, the links whose balls are not tested against the world in each
+            configuration: links that never move in the configurations checked, whose world
+            contacts ``static_hit`` decides once (default: the root body, rigid with the world;
+            a planning context adds the links its planned joints do not move).
     """
 
     def __init__(self, model: RobotModel, obstacles: Sequence[Obstacle], T_world_base: np.ndarray | None = None,
                  spheres: SphereModel | None = None, acm: np.ndarray | None = None, mesh_boxes: int = 32,
-                 static_hit: bool | None = None) -> None:
+                 static_hit: bool | None = None, still: np.ndarray | None = None) -> None:
         self.model = model
         self._limits = (model.lower - LIMIT_TOLERANCE, model.upper + LIMIT_TOLERANCE)  # for screen
         self.spheres = generate_sphere_model(model) if spheres is None else spheres
@@ -208,7 +212,8 @@ class SphereChecker:
         pairs = [(a, b) if count(a) <= count(b) else (b, a) for a, b in pairs]
         self.obstacle_data = obstacle_arrays(check_obstacles(obstacles), mesh_boxes)
         d = self.obstacle_data
-        static = groups["frame"] == 0  # frame 0 is the model root: it never moves
+        # frame 0 is the model root: it never moves
+        static = groups["frame"] == 0 if still is None else np.asarray(still, dtype=bool)[groups["link"]]
         self.data = (
             self.T_world_base,
             *(frames[k] for k in ("parent", "jtype", "origin", "axis", "qidx", "mult", "offset")),
@@ -225,9 +230,14 @@ class SphereChecker:
         self._scales = K.unit_scales(self.data)
         world = self.data[:-1] + (np.zeros((0, 2), dtype=np.int64),)
         self._world_only = (world, K.unit_scales(world))
+        self._still = static
         # balls on the root body do not move: test them against the world once, here
-        self.static_hit = self._hits_world(np.zeros(model.dof), static) if static_hit is None else bool(static_hit)
-        """True if the robot's root body meets an obstacle: every configuration collides."""
+        self.static_hit = self.still_hit(np.zeros(model.dof)) if static_hit is None else bool(static_hit)
+        """True if the still links (the root body) meet an obstacle: every configuration collides."""
+
+    def still_hit(self, q: np.ndarray) -> bool:
+        """Whether a ball of the still links (see ``still``) meets an obstacle at q (dof,)."""
+        return self._hits_world(q, self._still)
 
     def _hits_world(self, q: np.ndarray, groups: np.ndarray) -> bool:
         """Whether a ball of the groups marked in ``groups`` (G,) bool meets an obstacle at q (dof,)."""
@@ -240,7 +250,7 @@ class SphereChecker:
     def ball_contacts(self, q: np.ndarray) -> list[tuple[str, str]]:
         """Where the balls collide at one configuration q (dof,): (link, other link) for each
         pair of links the ACM does not skip whose balls overlap, and (link, "world") for each
-        link whose balls meet an obstacle (links on the root body only if :attr:`static_hit`)."""
+        link whose balls meet an obstacle (still links, see ``still``, only if :attr:`static_hit`)."""
         q = self.model.check_one(q, "ball_contacts")
         names = self.model.link_names
         out = [(names[a], names[b]) for a, b in np.argwhere(self.link_overlaps(q[None])[0])]

@@ -299,19 +299,22 @@ class PlanningContext:
         centers, radii = self.sphere_model.link_bounds()
         self.space = ConfigurationSpace(self.collision_model, joints, q_ref, centers=centers, radii=radii)
         self._exact_checkers: dict = {}  # exact checker and certifier, shared with refined contexts
-        self.static_pairs = self._static_pairs()
+        moved_by = self._moved_by()
+        self.static_pairs = self._static_pairs(moved_by)
         """(K, 2) link pairs with balls that the planned joints do not move relative to each other
         (a planned arm and the torso's other arm): left out of the ball checks, tested on the
         exact geometry once per value of the joints not planned (:meth:`static_free`)."""
+        self.still_links = np.array([not joints for joints in moved_by], dtype=bool)
+        """(L,) bool: the links the planned joints do not move (the root body, the legs of a
+        humanoid planning an arm): left out of the balls' world tests; their world contacts are
+        decided on the exact geometry once per value of the joints not planned (:meth:`static_free`),
+        so that a robot standing on the floor can plan although its feet's balls reach into it."""
         self._static_free: dict[bytes, bool] = {}
         kernel_acm = self.acm.copy()
         kernel_acm[self.static_pairs[:, 0], self.static_pairs[:, 1]] = True
         kernel_acm[self.static_pairs[:, 1], self.static_pairs[:, 0]] = True
         self.spheres = SphereChecker(self.collision_model, self.obstacles, self.T_world_base, self.sphere_model,
-                                     kernel_acm)
-        if self.spheres.static_hit and not self._root_contacts():  # only the base's balls meet the world
-            self.spheres = SphereChecker(self.collision_model, self.obstacles, self.T_world_base, self.sphere_model,
-                                         kernel_acm, static_hit=False)
+                                     kernel_acm, static_hit=False, still=self.still_links)
         self.static_free(self.space.q_ref)  # tested now, outside the planners' clocks
         self.motion = self._motion_tables()
         """(Wball (dof, S), Wgroup (G, D), qgroup (G, D), pcut (P, 2), scales, queue (Q, 3),
@@ -334,30 +337,30 @@ class PlanningContext:
         self._refined: dict[frozenset, PlanningContext] = {}
         self._overlapping: list[tuple[str, str, int, int]] | None = None
 
-    def _static_pairs(self) -> np.ndarray:
-        """(K, 2) link pairs (ACM-allowed ones left out) with the same planned joints on their
-        paths to the root: nothing planned lies between them."""
+    def _moved_by(self) -> list[frozenset]:
+        """Per link, the links on its path to the root whose joints are planned."""
         model, planned = self.collision_model, set(self.space.indices.tolist())
-        moved_by = [frozenset(k for k in model.path_to_root(link) if model.joint_q_index[k] in planned)
-                    for link in range(model.n_links)]
+        return [frozenset(k for k in model.path_to_root(link) if model.joint_q_index[k] in planned)
+                for link in range(model.n_links)]
+
+    def _static_pairs(self, moved_by: list[frozenset]) -> np.ndarray:
+        """(K, 2) link pairs (ACM-allowed ones left out) with the same planned joints on their
+        paths to the root (``moved_by``): nothing planned lies between them."""
         with_balls = np.unique(self.sphere_model.sphere_link)
         pairs = [(i, j) for a, i in enumerate(with_balls) for j in with_balls[a + 1:]
                  if not self.acm[i, j] and moved_by[i] == moved_by[j]]
         return np.array(pairs, dtype=np.int64).reshape(-1, 2)
 
     def static_free(self, q: np.ndarray) -> np.ndarray:
-        """(*batch,) bool for q (*batch, dof): no pair of :attr:`static_pairs` touches on the exact
-        geometry (remembered per value of the joints not planned)."""
+        """(*batch,) bool for q (*batch, dof): no pair of :attr:`static_pairs` touches and no
+        link of :attr:`still_links` meets the world on the exact geometry (remembered per value
+        of the joints not planned)."""
         q = self.model.check_configuration(q)
-        if not len(self.static_pairs):
-            return np.ones(q.shape[:-1], dtype=bool)
         flat = q.reshape(-1, self.model.dof)
         return np.array([self._static_free_at(row) for row in flat], dtype=bool).reshape(q.shape[:-1])
 
     def _static_free_at(self, q: np.ndarray) -> bool:
         """:meth:`static_free` of one checked configuration q (dof,)."""
-        if not len(self.static_pairs):
-            return True
         key = q[self.space.fixed].tobytes()
         free = self._static_free.get(key)
         if free is None:
@@ -365,16 +368,15 @@ class PlanningContext:
         return free
 
     def _static_contacts(self, q: np.ndarray) -> list[tuple[str, str, float]]:
-        """Contacts of the :attr:`static_pairs` at q (dof,) on the exact geometry."""
+        """Contacts of the :attr:`static_pairs`, and of the :attr:`still_links` with the world,
+        at q (dof,) on the exact geometry (the world ones only where the balls meet it)."""
         names = self.collision_model.link_names
         static = {frozenset((names[i], names[j])) for i, j in self.static_pairs}
-        return [c for c in self.exact.collisions(q) if frozenset(c[:2]) in static]
-
-    def _root_contacts(self) -> list[tuple[str, str, float]]:
-        """Contacts (link, obstacle, depth m) of the robot's root body with the world on the
-        exact geometry. The root body never moves, so its balls are tested against the world
-        once; a robot standing on a table is free although its base's balls reach into it."""
-        return self.exact.root_contacts(self.space.q_ref)
+        contacts = [c for c in self.exact.collisions(q, "self") if frozenset(c[:2]) in static] if static else []
+        if self.spheres.still_hit(q):
+            still = {names[i] for i in np.flatnonzero(self.still_links)}
+            contacts += [c for c in self.exact.collisions(q, "world") if c[0] in still]
+        return contacts
 
     def _motion_tables(self) -> tuple:
         model, checker = self.collision_model, self.spheres
@@ -560,8 +562,7 @@ class PlanningContext:
 
         qa, qb = self.model.check_one(qa, "check_motion: qa"), self.model.check_one(qb, "check_motion: qb")
         res = self._motion_resolution(qa, qb, resolution)
-        if self.spheres.static_hit or not (self.model.within_limits(qa) and self.model.within_limits(qb)
-                                           and self._static_free_at(qa)):
+        if not (self.model.within_limits(qa) and self.model.within_limits(qb) and self._static_free_at(qa)):
             return False
         return kernels.motion_free(qa, qb, res, self.spheres.data, self.scratch, self.motion_arrays(res),
                                    self.counters, kernels.NO_LIMIT, 2) == kernels.FREE
@@ -578,8 +579,6 @@ class PlanningContext:
                                   f"got {qa.shape} and {qb.shape}")
         res = self._motion_resolution(qa, qb, resolution)
         out = np.zeros(len(qa), dtype=bool)
-        if self.spheres.static_hit:
-            return out
         rows = np.flatnonzero(self.model.within_limits(np.stack((qa, qb))).all(axis=0) & self.static_free(qa))
         free = np.zeros(len(rows), dtype=bool)
         kernels.motions_free(qa[rows], qb[rows], free, res, self.spheres.data, self.scratch, self.motion_arrays(res),
