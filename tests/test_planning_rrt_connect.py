@@ -175,7 +175,7 @@ def test_invalid_start_and_goal(arm):
     many = rrt_connect(ctx, free, np.array([[0.0, 2.9 + 0.01 * i, 0.0] for i in range(8)]), settings)
     assert many.status is PlanStatus.INVALID_GOAL  # the first few reasons are told, not thousands
     assert re.fullmatch(r"(goal [0-4]: joint [^;]*; ){5}3 more goals rejected", many.info["reason"])
-    assert re.fullmatch(r"\w+ collides with block \(\d+\.\d mm deep\)(; .*)?", ctx.why_invalid(np.zeros(3)))
+    assert re.fullmatch(r"\w+ collides with block \(\d+(\.\d+)? mm deep\)(; .*)?", ctx.why_invalid(np.zeros(3)))
     assert re.fullmatch(r"joint \w+ = 2\.9 outside its limits \[-?[\d.]+, [\d.]+\]",
                         ctx.why_invalid(np.array([0.0, 2.9, 0.0])))
     assert ctx.why_invalid(free) == ""
@@ -788,7 +788,7 @@ def test_a_robot_standing_on_a_table_plans():
             _check_result(ctx, result, ready, goal)
         else:
             assert result.status is PlanStatus.INVALID_START
-            assert ctx.why_invalid(ready) == "panda_link0 collides with table (5.0 mm deep)"
+            assert ctx.why_invalid(ready) == "panda_link0 collides with table (5.03 mm deep)"
 
 
 def test_a_humanoid_standing_on_the_floor_plans_an_arm():

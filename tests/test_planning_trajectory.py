@@ -202,3 +202,22 @@ def test_model_limits():
                          ({"acceleration": float("nan")}, "acceleration must be")]:
         with pytest.raises(PrehensileError, match=message):
             model_limits(model, **bad)
+
+
+def test_a_spline_that_fails_in_one_place_is_split_there_not_dropped():
+    """A check that rejects the spline near one corner (an elastic band's waypoint at a joint
+    limit, where the spline overshoots) stops the motion near that corner only."""
+    _, _, path, velocity, acceleration = _panda_problem()
+    s = np.linspace(0.0, 1.0, 33)[:, None]
+    curved = path[0] + s * (path[1] - path[0]) + 0.3 * np.sin(np.pi * s) * np.ones(7)
+    stops = time_parameterize(curved, velocity, acceleration)
+    whole = time_parameterize(curved, velocity, acceleration, blend_check=lambda a, b: True)
+    near = curved[5]
+    check = lambda a, b: min(np.abs(a - near).max(), np.abs(b - near).max()) > 0.02  # noqa: E731
+    split = time_parameterize(curved, velocity, acceleration, blend_check=check)
+    assert whole.duration < split.duration < 0.5 * stops.duration
+    assert np.all(np.abs(split.qd) <= velocity * (1 + TOL)) and np.all(np.abs(split.qdd) <= acceleration * (1 + TOL))
+    assert np.array_equal(split.q[0], curved[0]) and np.array_equal(split.q[-1], curved[-1])
+    close = np.abs(split.q - near).max(axis=1) < 0.015  # only the polyline comes this close
+    assert close.any() and np.max(_distance_to_polyline(split.q[close], curved)) < 1e-9
+    assert np.max(_distance_to_polyline(split.q, curved)) > 1e-3  # blended elsewhere

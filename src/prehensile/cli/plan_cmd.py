@@ -13,8 +13,9 @@ and objects plus the other robots at their configurations.
 
 Writes to ``--out``: ``path.json`` (status, joint names, waypoints, statistics;
 ``path_length_m`` is the workspace-weighted length, a bound on how far any point of the robot
-travels), on success ``trajectory.json`` (time-optimal, rest to rest at each waypoint, with the
-limits used and the values of the joints not planned) and always ``plan.png`` (the robot at
+travels), on success ``trajectory.json`` (time-optimal under the limits it records, at rest at
+both ends; the corners are blended by a spline where the exact check accepts it, else the
+motion stops there; with the values of the joints not planned) and always ``plan.png`` (the robot at
 the start, a few waypoints and the goal). A failed plan removes the ``trajectory.json`` of an
 earlier one. Exit codes: 0 path
 found, 1 no path (the status says why, e.g. ``invalid_goal`` for a goal in collision), 2 bad

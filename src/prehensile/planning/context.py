@@ -498,7 +498,7 @@ class PlanningContext:
         for link, other, depth in self.exact.collisions(q):
             deepest[link, other] = max(depth, deepest.get((link, other), 0.0))
         if deepest:
-            return "; ".join(f"{link} collides with {other} ({1e3 * depth:.1f} mm deep)"
+            return "; ".join(f"{link} collides with {other} ({1e3 * depth:.3g} mm deep)"
                              for (link, other), depth in deepest.items())
         balls = self.spheres.ball_contacts(q)  # the root body's contacts were decided exactly: reported above
         if balls:

@@ -7,10 +7,12 @@ velocity would need an infinite acceleration to turn), so by default every segme
 parameterized on its own, rest to rest. Consecutive collinear segments are merged first, so
 a densely sampled straight line does not stop at every sample.
 
-Optionally the corners are *blended* by a cubic spline through all waypoints, but only when
-a caller-supplied motion check accepts the spline (densely sampled); otherwise the polyline
-is used. Blending matters for dense paths such as an elastic band's, where stopping at every
-waypoint multiplies the duration (about 5x on the Panda band of the tests).
+Optionally the corners are *blended* by a cubic spline through the waypoints, but only where
+a caller-supplied motion check accepts the spline (densely sampled): a run of waypoints whose
+spline fails is split at its middle waypoint, where the motion stops, and each half is tried
+again, down to single straight segments. Blending matters for dense paths such as an elastic
+band's, where stopping at every waypoint multiplies the duration (about 5x on the Panda band
+of the tests).
 
 Each piece is parameterized time-optimally under joint velocity and acceleration limits as a
 path velocity ``sd(s)`` on a grid of path positions with constant path acceleration between
@@ -262,9 +264,10 @@ def time_parameterize(path: np.ndarray, velocity_limits: float | np.ndarray, acc
 
     By default the motion follows the polyline exactly, stopping at each corner (collinear
     waypoints and repeats are dropped first). With ``blend_check`` the corners are rounded by
-    the natural cubic spline through the waypoints, used only if ``blend_check(qa, qb)``
+    the natural cubic spline through the waypoints, used where ``blend_check(qa, qb)``
     accepts every chord between spline samples ``blend_step`` apart and the spline is the
-    faster motion; otherwise the polyline is used (a warning is logged if the check failed).
+    faster motion: a run of waypoints whose spline fails is split at its middle waypoint (the
+    motion stops there) and each half blended on its own, down to straight segments.
     The check must also check joint limits, since the spline may overshoot: for a planning
     context, ``lambda a, b: ctx.check_motion(ctx.space.full(a), ctx.space.full(b))`` (the sphere
     model), or the exact check
@@ -312,16 +315,13 @@ def time_parameterize(path: np.ndarray, velocity_limits: float | np.ndarray, acc
     if len(corners) == 1:
         zero = np.zeros((1, n))
         return Trajectory(np.zeros(1), corners, zero, zero, tuple(joint_names))
-    pieces = [_Line(a, b) for a, b in zip(corners[:-1], corners[1:])]
-    ss, sd, piece_of = _knots(pieces, None, velocity, acceleration)
-    blended = _spline(corners, blend_check, blend_step) if blend_check is not None and len(corners) > 2 else None
-    if blend_check is not None and len(corners) > 2 and blended is None:
-        log.warning("time_parameterize: the blended path failed the check; stopping at the %d corners",
-                    len(corners) - 2)
-    if blended is not None:
-        knots = _knots([blended[0]], blended[1], velocity, acceleration)
-        if _duration(*knots[:2]) < _duration(ss, sd):  # else stopping at the corners is faster
-            pieces, (ss, sd, piece_of) = [blended[0]], knots
+    profiles = _profiles(corners, velocity, acceleration, blend_check, blend_step)
+    if blend_check is not None and len(profiles) < len(corners) - 1:
+        log.info("time_parameterize: %d blended pieces, at rest between them", len(profiles))
+    pieces = [piece for piece, _, _ in profiles]
+    ss = np.concatenate([np.stack([s[:-1], s[1:]], axis=1) for _, s, _ in profiles])
+    sd = np.concatenate([np.stack([v[:-1], v[1:]], axis=1) for _, _, v in profiles])
+    piece_of = np.concatenate([np.full(len(s) - 1, p) for p, (_, s, _) in enumerate(profiles)])
     durations = 2.0 * (ss[:, 1] - ss[:, 0]) / (sd[:, 0] + sd[:, 1])
     starts = np.concatenate([[0.0], np.cumsum(durations)[:-1]])
     # residual limit excess, measured at five points of every interval, then on the samples
@@ -340,23 +340,31 @@ def time_parameterize(path: np.ndarray, velocity_limits: float | np.ndarray, acc
     return Trajectory(t, q, qd, qdd, tuple(joint_names), motion)
 
 
-def _knots(pieces: list, grid: np.ndarray | None, velocity: np.ndarray, acceleration: np.ndarray):
-    """Rest-to-rest profiles of the pieces (straight lines if ``grid`` is None, else one spline
-    with its TOPP-RA gridpoints): per interval its path coordinates ss (K, 2), path speeds
-    sd (K, 2) at both ends (constant path acceleration between) and piece index (K,)."""
-    ss, sd, piece_of = [], [], []
-    for p, piece in enumerate(pieces):
-        s, v = (_line_knots(piece, velocity, acceleration) if grid is None
-                else _toppra_knots(piece, velocity, acceleration, grid))
-        ss.append(np.stack([s[:-1], s[1:]], axis=1))
-        sd.append(np.stack([v[:-1], v[1:]], axis=1))
-        piece_of.append(np.full(len(s) - 1, p))
-    return np.concatenate(ss), np.concatenate(sd), np.concatenate(piece_of)
+def _profiles(corners: np.ndarray, velocity: np.ndarray, acceleration: np.ndarray,
+              check: Callable[[np.ndarray, np.ndarray], bool] | None, step: float) -> list[tuple]:
+    """Rest-to-rest pieces through the corners (M, n), each with its profile (gridpoints s (G,),
+    path speeds sd (G,), constant path acceleration between them): the straight segments, or
+    with ``check`` the spline through the corners (:func:`_spline`) if it passes and is faster
+    than stopping at them; a spline that fails is split at its middle corner."""
+    lines = [(line, *_line_knots(line, velocity, acceleration))
+             for line in (_Line(a, b) for a, b in zip(corners[:-1], corners[1:]))]
+    if check is None or len(corners) < 3:
+        return lines
+    blended = _spline(corners, check, step)
+    if blended is None:
+        middle = len(corners) // 2
+        return (_profiles(corners[:middle + 1], velocity, acceleration, check, step)
+                + _profiles(corners[middle:], velocity, acceleration, check, step))
+    spline, grid = blended
+    knots = _toppra_knots(spline, velocity, acceleration, grid)
+    if _duration(*knots) < sum(_duration(s, sd) for _, s, sd in lines):
+        return [(spline, *knots)]
+    return lines  # a spline that turns back on itself can be slower than stopping
 
 
-def _duration(ss: np.ndarray, sd: np.ndarray) -> float:
-    """Duration (s) of the intervals of :func:`_knots`."""
-    return float(np.sum(2.0 * (ss[:, 1] - ss[:, 0]) / (sd[:, 0] + sd[:, 1])))
+def _duration(s: np.ndarray, sd: np.ndarray) -> float:
+    """Duration (s) of a profile: gridpoints s (G,), path speeds sd (G,)."""
+    return float(np.sum(2.0 * np.diff(s) / (sd[:-1] + sd[1:])))
 
 
 def _excess(qd: np.ndarray, qdd: np.ndarray, velocity: np.ndarray, acceleration: np.ndarray) -> float:
