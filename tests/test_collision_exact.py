@@ -355,3 +355,23 @@ def test_a_mesh_reports_the_depth_of_the_box_it_is():
     assert [c[:2] for c in mesh_contacts] == [c[:2] for c in box_contacts]
     assert mesh_contacts[0][2] == pytest.approx(box_contacts[0][2], abs=1e-6)
     assert mesh_distance == pytest.approx(box_distance, abs=1e-6) and box_distance < 0
+
+
+def test_a_body_wholly_inside_a_closed_mesh_collides_an_open_mesh_stays_a_surface():
+    """coal finds only surfaces meeting; inside a closed mesh (winding number) is a collision too,
+    whichever side holds the other. A crate whose closed surface has a cavity (outer and inner
+    walls) does not hold what sits in the cavity; an open box (no lid) is a surface only."""
+    model = _arm()
+    tool = [0.8, 0.0, 0.3]  # the centre of the tool's 0.1 m box at q = 0
+    shell = trimesh.creation.box(extents=(0.2, 0.2, 0.2))
+    cavity = trimesh.creation.box(extents=(0.16, 0.16, 0.16))
+    crate = trimesh.util.concatenate([shell, trimesh.Trimesh(cavity.vertices, cavity.faces[:, ::-1])])
+    lidless = trimesh.Trimesh(shell.vertices, shell.faces[[f for f in range(12) if shell.face_normals[f][2] < 0.5]])
+    for name, mesh, free in (("block", shell, False), ("crate", crate, True), ("lidless", lidless, True)):
+        shape = Mesh.from_arrays(mesh.vertices, mesh.faces)
+        checker = ExactChecker(model, [Obstacle(name, shape, make_pose(position=tool))])
+        assert bool(checker.is_free(np.zeros(2))) == free, name
+        assert bool(checker.collisions(np.zeros(2))) == (not free), name
+    pebble = Obstacle("pebble", Sphere(0.005), np.eye(4))
+    closed = build_model("closed", "test", [LinkSpec("base", collisions=[Geometry(_box_mesh((0.2, 0.2, 0.2)))])], [])
+    assert [c[:2] for c in ExactChecker(closed, [pebble]).collisions(np.zeros(0))] == [("base", "pebble")]

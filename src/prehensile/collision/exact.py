@@ -2,9 +2,15 @@
 
 Link meshes become ``coal.BVHModelOBBRSS``; boxes, spheres, cylinders and capsules become the
 matching coal shapes (coal takes full box sides and full cylinder/capsule lengths, as our
-:mod:`~prehensile.model.geometry` does). Meshes are *surfaces*: coal reports a collision when a
-triangle meets the other body, not when one body lies wholly inside a closed mesh. This
-checker certifies paths; planners use :class:`~prehensile.collision.sphere_checker.SphereChecker`.
+:mod:`~prehensile.model.geometry` does). coal treats meshes as *surfaces*: it reports a
+collision when a triangle meets the other body, not when one body lies wholly inside a closed
+mesh. The checks of single configurations here (:meth:`ExactChecker.is_free`,
+:meth:`ExactChecker.collisions`) add that case for closed (watertight) meshes: where the
+convex hulls meet but the surfaces do not, a point of one body inside the other closed mesh
+(winding number) is a collision. Open meshes (a sheet, a crate's walls without thickness) stay
+surfaces. Along a path, a body cannot get inside without crossing a surface, which the
+certification finds. This checker certifies paths; planners use
+:class:`~prehensile.collision.sphere_checker.SphereChecker`.
 """
 
 from __future__ import annotations
@@ -85,13 +91,42 @@ def convex_bound(shape: Shape, exact):
         return exact
 
 
+def closed_triangles(shape: Shape) -> np.ndarray | None:
+    """(F, 3, 3) the triangles of a closed (watertight, consistently wound) mesh ``shape`` in
+    its own frame, to test points for being inside it (:func:`inside_closed_mesh`); None for a
+    primitive or an open mesh."""
+    if not isinstance(shape, Mesh):
+        return None
+    mesh = shape.trimesh.copy()
+    mesh.merge_vertices()  # an STL file repeats each vertex for every triangle that has it
+    return np.asarray(mesh.triangles, dtype=float) if mesh.is_watertight and mesh.is_winding_consistent else None
+
+
+def inside_closed_mesh(triangles: np.ndarray, point: np.ndarray) -> bool:
+    """Whether ``point`` (3,) lies inside the closed mesh of ``triangles`` (F, 3, 3), both in
+    one frame: its winding number, the triangles' solid angles seen from the point over 4 pi
+    (Van Oosterom & Strackee 1983), is +-1 inside and 0 outside."""
+    a, b, c = np.moveaxis(triangles - point, 1, 0)
+    la, lb, lc = (np.linalg.norm(v, axis=1) for v in (a, b, c))
+    numerator = np.einsum("ij,ij->i", a, np.cross(b, c))
+    denominator = (la * lb * lc + np.einsum("ij,ij->i", a, b) * lc + np.einsum("ij,ij->i", b, c) * la
+                   + np.einsum("ij,ij->i", c, a) * lb)
+    return abs(float(np.sum(np.arctan2(numerator, denominator)))) > np.pi  # winding number above 1/2
+
+
+def _anchor(shape: Shape) -> np.ndarray:
+    """(3,) a point of ``shape`` in its own frame: a primitive's centre, a mesh's first vertex."""
+    return np.asarray(shape.trimesh.vertices[0], dtype=float) if isinstance(shape, Mesh) else np.zeros(3)
+
+
 def coal_transform(T: np.ndarray):
     """The coal transform of the pose T (4, 4)."""
     return coal.Transform3s(np.ascontiguousarray(T[:3, :3]), np.ascontiguousarray(T[:3, 3]))
 
 
 _SLACK = 1e-5  # m: bounds this far apart may still hold geometries that coal finds touching
-_EXACT, _BOUND, _POSE = 0, 1, 2  # a placed geometry: (exact, convex bound, coal transform)
+# a placed geometry: (exact, convex bound, coal transform, pose (4, 4), closed triangles or None, anchor (3,))
+_EXACT, _BOUND, _POSE, _MATRIX, _CLOSED, _ANCHOR = 0, 1, 2, 3, 4, 5
 
 
 def _convex(placed: tuple) -> bool:
@@ -150,6 +185,9 @@ class RobotPart(NamedTuple):
         convex: ``exact`` is convex (a primitive): ``bound`` is ``exact``.
         center: (3,) centre of a ball containing the geometry, in the link frame (m).
         radius: that ball's radius (m).
+        closed: (F, 3, 3) triangles of a closed mesh in the geometry's frame, else None
+            (:func:`closed_triangles`).
+        anchor: (3,) a point of the geometry in its frame.
     """
 
     link: int
@@ -159,6 +197,8 @@ class RobotPart(NamedTuple):
     convex: bool
     center: np.ndarray
     radius: float
+    closed: np.ndarray | None
+    anchor: np.ndarray
 
 
 _ROBOT_PARTS: WeakKeyDictionary = WeakKeyDictionary()
@@ -175,7 +215,7 @@ def robot_parts(model: RobotModel) -> tuple[RobotPart, ...]:
                 exact, T = coal_geometry(g.shape), np.asarray(g.T_link_geom, dtype=float)
                 center, radius = enclosing_ball(g.shape, T)
                 parts.append(RobotPart(link, T, exact, convex_bound(g.shape, exact), not isinstance(g.shape, Mesh),
-                                       center, radius))
+                                       center, radius, closed_triangles(g.shape), _anchor(g.shape)))
         _ROBOT_PARTS[model] = tuple(parts)
     return _ROBOT_PARTS[model]
 
@@ -190,6 +230,8 @@ class ObstaclePart(NamedTuple):
         bound: convex coal geometry containing it (:func:`convex_bound`).
         convex: ``exact`` is convex (a primitive): ``bound`` is ``exact``.
         transform: ``T_world_shape`` as a coal transform.
+        closed: (F, 3, 3) triangles of a closed mesh in the shape's frame, else None.
+        anchor: (3,) a point of the shape in its frame.
     """
 
     name: str
@@ -198,6 +240,8 @@ class ObstaclePart(NamedTuple):
     bound: object
     convex: bool
     transform: object
+    closed: np.ndarray | None
+    anchor: np.ndarray
 
 
 def obstacle_parts(obstacles: Sequence[Obstacle]) -> tuple[ObstaclePart, ...]:
@@ -207,8 +251,18 @@ def obstacle_parts(obstacles: Sequence[Obstacle]) -> tuple[ObstaclePart, ...]:
     for o in check_obstacles(obstacles):
         exact, T = coal_geometry(o.shape), np.asarray(o.T_world_shape, dtype=float)
         parts.append(ObstaclePart(o.name, T, exact, convex_bound(o.shape, exact), not isinstance(o.shape, Mesh),
-                                  coal_transform(T)))
+                                  coal_transform(T), closed_triangles(o.shape), _anchor(o.shape)))
     return tuple(parts)
+
+
+def _contains(a: tuple, b: tuple) -> bool:
+    """Whether the placed geometry a is a closed mesh with b's anchor inside (b wholly inside
+    it, if their surfaces do not meet)."""
+    if a[_CLOSED] is None:
+        return False
+    Ta, Tb = a[_MATRIX], b[_MATRIX]
+    point = Tb[:3, :3] @ b[_ANCHOR] + Tb[:3, 3]
+    return inside_closed_mesh(a[_CLOSED], Ta[:3, :3].T @ (point - Ta[:3, 3]))
 
 
 class ExactChecker:
@@ -295,14 +349,15 @@ class ExactChecker:
         return self._world_gaps(centers), self._self_gaps(centers)
 
     def _placer(self, poses: np.ndarray):
-        """part(g) -> (exact, convex bound, world transform) of geometry g for link poses
-        (L, 4, 4), each transform built once, on first use."""
+        """part(g) -> the placed geometry g (see ``_EXACT``) for link poses (L, 4, 4), each
+        transform built once, on first use."""
         placed: dict[int, tuple] = {}
 
         def part(g: int) -> tuple:
             if g not in placed:
                 p = self._parts[g]
-                placed[g] = (p.exact, p.bound, coal_transform(poses[p.link] @ p.T_link_geom))
+                T = poses[p.link] @ p.T_link_geom
+                placed[g] = (p.exact, p.bound, coal_transform(T), T, p.closed, p.anchor)
             return placed[g]
 
         return part
@@ -312,7 +367,8 @@ class ExactChecker:
         whose bounding balls are at most ``within`` m apart (``gap`` (W,) of one configuration)."""
         for g, o in self._world_pairs[gap <= within]:
             obstacle = self.obstacle_parts[o]
-            yield self._parts[g].link, o, part(g), (obstacle.exact, obstacle.bound, obstacle.transform)
+            yield self._parts[g].link, o, part(g), (obstacle.exact, obstacle.bound, obstacle.transform,
+                                                    obstacle.T_world_shape, obstacle.closed, obstacle.anchor)
 
     def _self_candidates(self, part, gap: np.ndarray, within: float):
         """(link index, link index, placed geometry, placed geometry) of the self pairs whose
@@ -336,6 +392,8 @@ class ExactChecker:
             return False, 0.0
         result = coal.CollisionResult()
         hit = coal.collide(a[_EXACT], a[_POSE], b[_EXACT], b[_POSE], request, result) > 0
+        if not hit and (_contains(a, b) or _contains(b, a)):
+            return True, self._mesh_depth(a, b) if request.enable_contact else 0.0
         depth = 0.0
         if hit and request.enable_contact:
             depth = (max((abs(c.penetration_depth) for c in result.getContacts()), default=0.0)
