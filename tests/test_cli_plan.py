@@ -214,6 +214,10 @@ def test_bad_scene_goal_names_the_file(tmp_path):
     scene.write_text("robots:\n  - {robot: panda, goal: {elbow: 1.0}}\n")
     with pytest.raises(SceneError, match=r"bad.yaml: robots\[0\].goal: robot 'panda' has no joint 'elbow'"):
         robot_goals(scene, load_scene(scene))
+    scene.write_text("robots:\n  - {robot: panda, goal: {panda_finger_joint2: 0.01}}\n")
+    with pytest.raises(SceneError, match=r"goal: 'panda_finger_joint2' is a mimic joint of robot 'panda': it follows "
+                                         r"'panda_finger_joint1'; give that joint's value"):
+        robot_goals(scene, load_scene(scene))
     scene.write_text("robots:\n  - {robot: panda, goal: {}}\n")
     with pytest.raises(SceneError, match=r"bad.yaml: robots\[0\].goal: empty; name the planned joints"):
         robot_goals(scene, load_scene(scene))

@@ -203,6 +203,10 @@ def _read_joints(values: Any, model: RobotModel, where: str) -> np.ndarray:
         raise SceneError(f"{where}: expected a mapping joint name -> value (rad or m), got {values!r}")
     q = model.neutral_configuration()
     for joint, value in values.items():
+        if joint in model.mimic_joints:
+            leader = model.joint_names[model.mimic_joints[joint][0]]
+            raise SceneError(f"{where}: '{joint}' is a mimic joint of robot '{model.name}': it follows '{leader}'; "
+                             "give that joint's value")
         if joint not in model.joint_names:
             raise SceneError(
                 f"{where}: robot '{model.name}' has no joint '{joint}'; joints: {', '.join(model.joint_names)}"
