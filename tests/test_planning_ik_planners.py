@@ -341,3 +341,25 @@ def test_multi_eef_rrt_picks_the_free_hand(armar):
     result = multi_eef_rrt(contexts, q0, samplers, IKRRTSettings(time_budget_s=10.0), rng=0)
     assert result.success and result.end_effector == "Hand_L"
     assert_valid_path(contexts["Hand_L"], result.path, q0)
+
+
+def test_jacobian_steps_hold_a_joint_at_its_limit_and_move_the_others_instead():
+    """The clamping loop: clipping the pseudoinverse step leaves the error undone; holding the
+    joint at its limit and solving again with the other six reaches the twist."""
+    from prehensile.planning.jplus_rrt import _limited_step
+
+    rng = np.random.default_rng(0)
+    jac, err, q = rng.normal(size=(6, 7)), 0.01 * rng.normal(size=6), np.zeros(7)
+    lower, upper = np.full(7, -10.0), np.full(7, 10.0)
+    free = np.linalg.pinv(jac) @ err
+    k = int(np.argmax(np.abs(free)))
+    (lower if free[k] < 0 else upper)[k] = 0.0  # joint k sits at the limit it wants to cross
+    dq = _limited_step(jac, err, q, lower, upper, 0.0)
+    assert dq[k] == 0.0 and np.all((lower <= q + dq) & (q + dq <= upper))
+    np.testing.assert_allclose(jac @ dq, err, atol=1e-12)
+    clipped = np.clip(free, lower - q, upper - q)
+    assert np.linalg.norm(jac @ clipped - err) > 0.1 * np.linalg.norm(err)
+    damped = _limited_step(jac, err, q, lower, upper, 0.01)
+    assert damped[k] == 0.0 and np.linalg.norm(jac @ damped - err) < np.linalg.norm(jac @ clipped - err)
+    with pytest.raises(PrehensileError, match="JPlusRRTSettings.damping must be >= 0 and finite"):
+        JPlusRRTSettings(damping=-0.1)

@@ -518,7 +518,7 @@ def test_a_start_only_the_thin_balls_let_through_is_an_invalid_start(arm, monkey
     assert not result.info["certify"].ok and "l3" in result.info["refined"]
     assert ctx.why_invalid(start).startswith("l3 collides with block")
     # the statistics count the second attempt's setup (its escape searches may take the budget)
-    rrt_connect_module = importlib.import_module("prehensile.planning.rrt_connect")  # the package's name is the function
+    rrt_connect_module = importlib.import_module("prehensile.planning.rrt_connect")  # the function shadows it
     screen = rrt_connect_module._endpoints
 
     def slow_on_the_cover(context, *args, **kwargs):
