@@ -500,7 +500,7 @@ class PlanningContext:
         if deepest:
             return "; ".join(f"{link} collides with {other} ({1e3 * depth:.3g} mm deep)"
                              for (link, other), depth in deepest.items())
-        balls = self.spheres.ball_contacts(q)  # the root body's contacts were decided exactly: reported above
+        balls = self.spheres.ball_contacts(q)  # the still links' world contacts were decided exactly: above
         if balls:
             where = ", ".join(f"{a} with {b}" for a, b in balls)
             return (f"free on the exact geometry, but the sphere model's conservative balls collide ({where}); "
