@@ -66,7 +66,7 @@ def why_no_free_configuration(model, group: str, rng: np.random.Generator, tries
         if valid:
             return ""
         first = q if first is None else first
-    return ctx.why_invalid(first) or "; ".join(f"{a} with {b}" for a, b in ctx.spheres.ball_contacts(first))
+    return ctx.why_invalid(first)  # never "" for a configuration that is not valid
 
 
 def write(folder: Path, k: int, model, group: str, obstacles: list[Obstacle], yaw: float, start: np.ndarray,
