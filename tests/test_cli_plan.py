@@ -69,6 +69,54 @@ def test_plan_bundled_scene(demo, tmp_path):
     assert (tmp_path / "plan.png").stat().st_size > 10_000
 
 
+def _box_distance(obstacle, points: np.ndarray) -> np.ndarray:
+    """Distance (m) of world points (N, 3) from a box obstacle (0 inside)."""
+    T, half = obstacle.T_world_shape, 0.5 * np.array(obstacle.shape.size)
+    local = (points - T[:3, 3]) @ T[:3, :3]
+    return np.linalg.norm(np.maximum(np.abs(local) - half, 0.0), axis=1)
+
+
+def test_plan_carries_a_held_object(tmp_path):
+    """carry_demo: the bottle in the hand moves with it; along the path (waypoints joined by
+    straight joint motions) and the trajectory neither the arm nor the bottle touches the
+    bench or the wall, checked here without the planner's checkers."""
+    result = _plan("carry_demo", "--out", tmp_path)
+    assert result.exit_code == 0, result.output
+    path = json.loads((tmp_path / "path.json").read_text())
+    assert path["held_objects"] == {"bottle": "panda_hand"}
+    scene = load_scene(bundled_scene_path("carry_demo"))
+    robot, (bottle,) = scene.robots[0], scene.attached_objects("panda")
+    model, arm = robot.model, robot.model.chain_q_indices("arm")
+    waypoints = np.array(path["waypoints"])
+    steps = np.linspace(0.0, 1.0, 400)[:, None]
+    along = np.concatenate([a + steps * (b - a) for a, b in zip(waypoints[:-1], waypoints[1:])])
+    trajectory = np.array(json.loads((tmp_path / "trajectory.json").read_text())["q"])
+    samples = np.repeat(robot.configuration[None], len(along) + len(trajectory), axis=0)
+    samples[:, arm] = np.concatenate([along, trajectory])
+    obstacles = scene.collision_obstacles("panda")
+    assert [o.name for o in obstacles] == ["bench", "wall"]
+    assert ExactChecker(model, obstacles, robot.T_world_base).is_free(samples).all()
+    cylinder = bottle.geometries()[0].shape
+    axis = np.linspace(-0.5, 0.5, 241)[:, None] * [0.0, 0.0, cylinder.length]  # 1 mm apart
+    T_world_bottle = link_pose(model, samples, "panda_hand", bottle.T_link_object, robot.T_world_base)
+    points = (np.einsum("nij,kj->nki", T_world_bottle[:, :3, :3], axis) + T_world_bottle[:, None, :3, 3]).reshape(-1, 3)
+    for obstacle in obstacles:  # the balls of radius r + 0.5 mm around the axis points hold the bottle
+        assert _box_distance(obstacle, points).min() > np.hypot(cylinder.radius, 0.0005), obstacle.name
+
+
+def test_a_goal_where_the_held_object_collides_is_invalid(tmp_path):
+    lowered = ["-0.796", "0.5", "0.075", "-1.592", "-0.01", "1.72", "0.965"]  # the bare hand stays above the bench
+    result = _plan("carry_demo", "--goal", *lowered, "--out", tmp_path)
+    assert result.exit_code == 1, result.output
+    path = json.loads((tmp_path / "path.json").read_text())
+    assert path["status"] == "invalid_goal" and "attached/bottle collides with bench" in path["reason"]
+    scene = load_scene(bundled_scene_path("carry_demo"))
+    robot = scene.robots[0]
+    q = robot.configuration.copy()
+    q[robot.model.chain_q_indices("arm")] = [float(v) for v in lowered]
+    assert ExactChecker(robot.model, scene.collision_obstacles("panda"), robot.T_world_base).is_free(q)
+
+
 def test_an_interrupted_plan_leaves_the_earlier_outputs_whole(tmp_path, monkeypatch):
     """The outputs are written together, after the picture is drawn: an interruption before
     then changes none of them."""

@@ -12,7 +12,7 @@ import yaml
 
 from prehensile.errors import SceneError
 from prehensile.model.geometry import Box, Capsule, Cylinder, Mesh, Sphere
-from prehensile.scene import PlacedRobot, Scene, bundled_scene_path, check_scene, load_scene, save_scene
+from prehensile.scene import Hold, PlacedRobot, Scene, bundled_scene_path, check_scene, load_scene, save_scene
 from prehensile.spatial import quaternion_to_matrix, rpy_to_matrix
 
 DATA = Path(__file__).parent / "data" / "scenes"
@@ -144,6 +144,20 @@ CASES = [
     ("shape and shapes", lambda d: d["objects"][0].update(shapes=[]), ["objects[0] 'ball'", "exactly one of 'shape'"]),
     ("string size", lambda d: d["obstacles"][0]["shapes"][0].update(size="big"), ["obstacles[0] 'table'", "list of 3 numbers"]),
     ("bad version", lambda d: d.update(version=7), ["version", "unsupported"]),
+    ("held obstacle", lambda d: d["obstacles"][0].update(held_by={"robot": "arm", "link": "link2"}),
+     ["obstacles[0] 'table'.held_by", "an obstacle cannot be held", "'objects'"]),
+    ("unknown holder", lambda d: d["objects"][0].update(held_by={"robot": "r2", "link": "link2"}),
+     ["objects[0] 'ball'.held_by.robot", "no robot 'r2'", "robots: arm"]),
+    ("unknown holding link", lambda d: d["objects"][0].update(held_by={"robot": "arm", "link": "hand"}),
+     ["objects[0] 'ball'.held_by.link", "no link 'hand'", "links: base_link, link1, link2, tool"]),
+    ("unknown touch link", lambda d: d["objects"][0].update(held_by={"robot": "arm", "link": "tool",
+                                                                     "touch_links": ["link2", "finger"]}),
+     ["'ball'.held_by.touch_links[1]", "no link 'finger'"]),
+    ("touch links not a list", lambda d: d["objects"][0].update(held_by={"robot": "arm", "link": "tool",
+                                                                         "touch_links": "link2"}),
+     ["'ball'.held_by.touch_links", "expected a list of link names"]),
+    ("typo in held_by", lambda d: d["objects"][0].update(held_by={"robot": "arm", "lnk": "tool"}),
+     ["'ball'.held_by", "unknown key 'lnk'", "did you mean 'link'"]),
 ]
 
 
@@ -202,6 +216,54 @@ def test_robot_robot_contacts_are_reported(tmp_path):
     result = check_scene(load_scene(_write(tmp_path, data)))
     others = {c.other for r in result.robots for c in r.contacts}
     assert "b/base_link" in others and "a/base_link" in others
+
+
+def _held_ball(position, touch_links=()) -> dict:
+    """The base scene with its ball held by the arm's tool frame, the ball at ``position`` (world, m)."""
+    hold = {"robot": "arm", "link": "tool", **({"touch_links": list(touch_links)} if touch_links else {})}
+    return _mutate(lambda d: d["objects"][0].update(pose={"position": position}, held_by=hold))
+
+
+def _link_position(scene: Scene, link: str) -> np.ndarray:
+    robot = scene.robots[0]
+    return robot.link_poses()[robot.model.link_index(link)][:3, 3]
+
+
+def test_a_held_object_round_trips_and_moves_with_its_link(tmp_path):
+    plain = load_scene(_write(tmp_path, _base()))
+    tip = _link_position(plain, "tool") + [0.0, 0.0, 0.05]
+    scene = load_scene(_write(tmp_path, _held_ball(tip.tolist(), ["link2"])))
+    assert scene.objects[0].held_by == Hold("arm", "tool", ("link2",)) and scene.objects[1].held_by is None
+    (ball,) = scene.attached_objects("arm")
+    assert ball.name == "ball" and ball.link == "tool" and ball.touch_links == ("link2",)
+    robot = scene.robots[0]
+    T_world_tool = robot.link_poses()[robot.model.link_index("tool")]
+    np.testing.assert_allclose(T_world_tool @ ball.T_link_object, scene.objects[0].T_world_body, atol=1e-12)
+    assert len(scene.collision_obstacles()) == 5 and len(scene.collision_obstacles("arm")) == 4
+    assert len(scene.collision_obstacles("another robot")) == 5
+    save_scene(scene, tmp_path / "copy.yaml")
+    again = load_scene(tmp_path / "copy.yaml")
+    assert again.objects[0].held_by == scene.objects[0].held_by
+    np.testing.assert_allclose(again.attached_objects("arm")[0].T_link_object, ball.T_link_object, atol=1e-12)
+    assert "touch_links" not in yaml.safe_load((tmp_path / "copy.yaml").read_text())["objects"][1]
+
+
+def test_check_treats_a_held_object_as_part_of_its_robot(tmp_path):
+    """The ball held by the tool may overlap the links fixed to the tool (link2) and its touch
+    links; elsewhere it collides like a link: with the world, and with the robot's other links
+    (self contacts)."""
+    elbow = _link_position(load_scene(_write(tmp_path, _base())), "link2")  # a 4 cm ball there meets link1's top
+    for method in ("exact", "spheres"):
+        for touch, free in (((), False), (("link1",), True)):
+            held = load_scene(_write(tmp_path, _held_ball(elbow.tolist(), touch)))
+            (robot,) = check_scene(held, method).robots
+            assert robot.free == free, (method, touch, robot.contacts)
+            if not free:
+                assert {(c.link, c.other, c.kind) for c in robot.contacts} == {("link1", "attached/ball", "self")}
+    in_the_table = load_scene(_write(tmp_path, _held_ball([1.0, 0.0, 0.4], ["link2"])))
+    (robot,) = check_scene(in_the_table).robots
+    assert {(c.link, c.other, c.kind) for c in robot.contacts} == {("attached/ball", "table", "world")}
+    assert robot.contacts[0].depth > 0.03
 
 
 def test_an_obstacle_named_like_a_link_is_a_world_contact(tmp_path):

@@ -9,17 +9,17 @@ or a world position of the tip (``--target x y z``, any orientation: for arms wi
 six joints, such as NAO's), planned with IK-RRT.
 The planned joints are ``--chain``'s, else the joints the scene's goal names, else all of the
 robot's; joints not planned stay at their start values. The world is the scene's obstacles
-and objects plus the other robots at their configurations.
+and objects plus the other robots at their configurations; the objects the robot holds
+(``held_by`` in the scene file) move with their links instead.
 
-Writes to ``--out``: ``path.json`` (status, joint names, waypoints, statistics;
-``path_length_m`` is the workspace-weighted length, a bound on how far any point of the robot
-travels), on success ``trajectory.json`` (time-optimal under the limits it records, at rest at
-both ends; the corners are blended by a spline where the exact check accepts it, else the
-motion stops there; with the values of the joints not planned) and always ``plan.png`` (the robot at
-the start, a few waypoints and the goal). A failed plan removes the ``trajectory.json`` of an
-earlier one. Exit codes: 0 path
-found, 1 no path (the status says why, e.g. ``invalid_goal`` for a goal in collision), 2 bad
-input, 3 a bug.
+Writes to ``--out``: ``path.json`` (status, joint names, waypoints, the held objects and their
+links, statistics; ``path_length_m`` is the workspace-weighted length, a bound on how far any
+point of the robot travels), on success ``trajectory.json`` (time-optimal under the limits it
+records, at rest at both ends; the corners are blended by a spline where the exact check
+accepts it, else the motion stops there; with the values of the joints not planned) and always
+``plan.png`` (the robot at the start, a few waypoints and the goal, with the objects it holds).
+A failed plan removes the ``trajectory.json`` of an earlier one. Exit codes: 0 path found, 1 no
+path (the status says why, e.g. ``invalid_goal`` for a goal in collision), 2 bad input, 3 a bug.
 """
 
 from __future__ import annotations
@@ -34,7 +34,7 @@ import typer
 from prehensile.cli.app import (BALL_RADIUS_OPTION, app, check_ball_radius, check_budget, check_seed, console,
                                 extra_values, handles_errors)
 from prehensile.errors import PrehensileError, SceneError, UnknownFrameError, missing_file
-from prehensile.scene.scene import PlacedRobot, Scene
+from prehensile.scene.scene import Body, PlacedRobot, Scene
 
 EXIT_NO_PATH = 1
 CONFIGURATION_PLANNERS, POSE_PLANNERS = ("rrt_connect",), ("ik_rrt", "jplus_rrt")
@@ -143,6 +143,7 @@ def plan_report(result, ctx, scene: Path, robot: PlacedRobot, q_goal: np.ndarray
         "target": None if target is None else target.tolist(),
         "waypoints": space.active(result.path).tolist() if result.success else [],
         "fixed_joints": {j: float(space.q_ref[robot.model.joint_index(j)]) for j in fixed},
+        "held_objects": {obj.name: obj.link for obj in ctx.attached},
         "path_length_m": space.path_length(space.active(result.path)) if result.success else None,
         "stats": dataclasses.asdict(result.stats),
         "reason": _end_reason(result, ctx, robot.configuration, q_goal),
@@ -169,12 +170,19 @@ def _end_reason(result, ctx, q_start: np.ndarray, q_goal: np.ndarray | None) -> 
 
 
 def picture_scene(scene: Scene, robot: PlacedRobot, configurations: np.ndarray) -> Scene:
-    """``scene`` with ``robot`` replaced by copies at each configuration (N, dof)."""
+    """``scene`` with ``robot`` replaced by copies at each configuration (N, dof), each with
+    a copy of the objects it holds."""
     labels = ["start"] + [f"waypoint {k}" for k in range(1, len(configurations) - 1)] + ["goal"]
     copies = tuple(dataclasses.replace(robot, name=f"{robot.name} ({label})", q=q)
                    for label, q in zip(labels, configurations))
+    attached = scene.attached_objects(robot.name)
+    carried = tuple(Body(f"{obj.name} ({copy.name})", obj.geometries(),
+                         copy.link_poses()[robot.model.link_index(obj.link)] @ obj.T_link_object)
+                    for copy in copies for obj in attached)
+    held = {obj.name for obj in attached}
     others = tuple(r for r in scene.robots if r.name != robot.name)
-    return dataclasses.replace(scene, robots=copies + others)
+    return dataclasses.replace(scene, robots=copies + others,
+                               objects=tuple(b for b in scene.objects if b.name not in held) + carried)
 
 
 def write_outputs(result, context, scene: Scene, robot: PlacedRobot, report: dict, out: Path) -> list[Path]:
@@ -289,11 +297,11 @@ def plan(
                               "or plan to a position with ik_rrt")
     q_goal = None if target else goal_configuration(placed, joints, values, scene_goal)
     q_start = placed.configuration
-    obstacles = loaded.collision_obstacles() + [o for r in loaded.robots if r.name != placed.name
-                                                for o in robot_obstacles(r)]
+    obstacles = loaded.collision_obstacles(placed.name) + [o for r in loaded.robots if r.name != placed.name
+                                                           for o in robot_obstacles(r)]
     spheres = None if ball_radius is None else generate_sphere_model(model, max_radius=ball_radius)
     context = PlanningContext(model, obstacles, joints=joints, q_ref=q_start, T_world_base=placed.T_world_base,
-                              spheres=spheres)
+                              spheres=spheres, attached=loaded.attached_objects(placed.name))
     if pose is None:
         result = rrt_connect(context, q_start, q_goal, settings=RRTConnectSettings(time_budget_s=budget),
                              rng=np.random.default_rng(seed))

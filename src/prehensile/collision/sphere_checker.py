@@ -3,7 +3,7 @@
 Forward kinematics and every test run in one compiled kernel
 (:mod:`prehensile.collision.sphere_kernels`) that stops at the first collision of each
 configuration; the same kernel gives (scaled) clearances for the planners' motion checks.
-Grasped objects join as extra links (:func:`prehensile.planning.context.attach_objects`).
+Grasped objects join as extra links (:func:`prehensile.collision.attached.attach_objects`).
 Boxes, spheres, cylinders and capsules are tested exactly (ball against solid).
 Mesh obstacles are replaced by oriented boxes covering their triangles
 (:func:`~prehensile.collision.sphere_fit.box_cover`; flat patches give flat boxes), which is

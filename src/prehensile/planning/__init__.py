@@ -2,8 +2,9 @@
 shortcutting, exact certification and time parameterization (Vahrenkamp 2011 ch. 2, 4,
 appendices B and C.2)."""
 
+from prehensile.collision.attached import AttachedObject
 from prehensile.planning.certify import CertifyReport, certify_path
-from prehensile.planning.context import AttachedObject, PlanningContext
+from prehensile.planning.context import PlanningContext
 from prehensile.planning.cspace import ConfigurationSpace
 from prehensile.planning.elastic_band import ElasticBandSettings, elastic_band
 from prehensile.planning.ik_rrt import GoalSampler, IKRRTSettings, grasp_sampler, ik_rrt, multi_eef_rrt

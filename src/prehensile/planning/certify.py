@@ -101,7 +101,7 @@ class ExactCertifier:
 
     Args:
         model: the robot (with attached objects as links, see
-            :func:`~prehensile.planning.context.attach_objects`).
+            :func:`~prehensile.collision.attached.attach_objects`).
         obstacles: shapes fixed in the world.
         T_world_base: (4, 4) pose of the robot root.
         acm: (L, L) allowed-collision matrix (True = pair not checked).

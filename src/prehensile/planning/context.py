@@ -2,9 +2,10 @@
 
 A :class:`PlanningContext` holds what every planner query needs: the configuration space of
 the planned joints, the sphere checker (planning), the exact checker and certifier and the
-arrays the compiled planners run on. Grasped objects (:class:`AttachedObject`) become extra
-links fixed to the link that holds them, so both checkers, the metric and the motion bounds
-cover them without special cases.
+arrays the compiled planners run on. Grasped objects
+(:class:`~prehensile.collision.attached.AttachedObject`) become extra links fixed to the link
+that holds them, so both checkers, the metric and the motion bounds cover them without
+special cases.
 
 Motion bounds ("free bubbles", Vahrenkamp 2011 C.2 after Quinlan 1995): every ball b gets
 per-joint weights ``W[b, k]`` (:func:`ball_joint_weights`, m per rad or m per m) bounding how
@@ -20,20 +21,18 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-from dataclasses import dataclass, field
 from typing import Sequence
 
 import numpy as np
 
 from prehensile.collision import sphere_kernels as SK
-from prehensile.collision.acm import allowed_collision_matrix, rigid_bodies
+from prehensile.collision.acm import allowed_collision_matrix
+from prehensile.collision.attached import AttachedObject, attach_objects
 from prehensile.collision.sphere_checker import SphereChecker, frames_and_groups
-from prehensile.collision.sphere_fit import cover_geometries
 from prehensile.collision.spheres import SphereModel, generate_sphere_model, pad_sphere_model, replace_link_balls
-from prehensile.collision.world import SHAPE_SIZES, Obstacle, check_obstacles, positive_size
+from prehensile.collision.world import Obstacle, check_obstacles
 from prehensile.errors import PrehensileError
 from prehensile.ik.jacobian import free_joint_indices
-from prehensile.model.geometry import Geometry, Shape
 from prehensile.model.robot_model import FIXED, PRISMATIC, REVOLUTE, RobotModel
 from prehensile.planning.cspace import ConfigurationSpace
 from prehensile.planning.result import PlanResult, PlanStatus
@@ -54,98 +53,6 @@ def check_resolution(value: float, what: str) -> float:
     if not MIN_RESOLUTION <= res < np.inf:
         raise PrehensileError(f"{what}: must be a finite length >= {MIN_RESOLUTION} m, got {value!r}")
     return res
-
-
-@dataclass(frozen=True, eq=False)
-class AttachedObject:
-    """A grasped object that moves with a robot link.
-
-    It collides with the world and with every link except ``link``'s rigid body (the links
-    fixed to it, e.g. the hand on the flange) and ``touch_links`` (e.g. the fingers).
-
-    Attributes:
-        name: object name (unique among the attached objects).
-        link: the link that holds it.
-        shape: a shape in the object frame, a :class:`Geometry` or a tuple of them.
-        T_link_object: (4, 4) pose of the object frame in the link frame.
-        touch_links: further links allowed to touch it (names, or one name).
-    """
-
-    name: str
-    link: str
-    shape: Shape | Geometry | Sequence[Shape | Geometry]
-    T_link_object: np.ndarray = field(default_factory=lambda: np.eye(4))
-    touch_links: tuple[str, ...] = ()
-
-    def __post_init__(self) -> None:
-        where = f"AttachedObject '{self.name}'"
-        if isinstance(self.touch_links, str):  # one link, not its letters
-            object.__setattr__(self, "touch_links", (self.touch_links,))
-        check_one_pose(self.T_link_object, f"{where}: T_link_object")
-        parts = self.shape if isinstance(self.shape, (list, tuple)) else (self.shape,)
-        if not parts:
-            raise PrehensileError(f"{where}: no shape given")
-        for part in parts:
-            shape = part.shape if isinstance(part, Geometry) else part
-            if not positive_size(shape):
-                raise PrehensileError(f"{where}: {shape} {SHAPE_SIZES}")
-            if isinstance(part, Geometry):
-                check_one_pose(part.T_link_geom, f"{where}: T_link_geom of {part.name or 'a geometry'}")
-
-    def geometries(self) -> tuple[Geometry, ...]:
-        """The object's geometries in the object frame."""
-        parts = self.shape if isinstance(self.shape, (list, tuple)) else (self.shape,)
-        return tuple(part if isinstance(part, Geometry) else Geometry(part, name=self.name) for part in parts)
-
-
-def attach_objects(model: RobotModel, spheres: SphereModel, acm: np.ndarray, attached: Sequence[AttachedObject],
-                   balls: int = 16) -> tuple[RobotModel, SphereModel, np.ndarray]:
-    """The model, sphere model and ACM with one fixed link ``attached/<name>`` per object.
-
-    The new links come after the model's links (the variables are unchanged). Their balls
-    cover the object's geometry (:func:`~prehensile.collision.sphere_fit.cover_geometries`,
-    ``balls`` per mesh).
-    """
-    if not attached:
-        return model, spheres, acm
-    names = [f"attached/{obj.name}" for obj in attached]
-    if len(set(names)) != len(names) or set(names) & set(model.link_names):
-        raise PrehensileError(f"attached objects need unique names, got {[obj.name for obj in attached]}")
-    n, k = model.n_links, len(attached)
-    parents = [model.link_index(obj.link) for obj in attached]
-    origins = []
-    for obj in attached:
-        T = np.asarray(obj.T_link_object, dtype=float)
-        if T.shape != (4, 4) or not np.all(np.isfinite(T)):
-            raise PrehensileError(f"attached object '{obj.name}': T_link_object must be a finite (4, 4) pose")
-        origins.append(T)
-    geometries = tuple(obj.geometries() for obj in attached)
-    augmented = dataclasses.replace(
-        model, link_names=model.link_names + tuple(names), link_joint_names=model.link_joint_names + tuple(names),
-        link_parent=np.concatenate([model.link_parent, parents]),
-        joint_type=np.concatenate([model.joint_type, [FIXED] * k]),
-        joint_origin=np.concatenate([model.joint_origin, origins]),
-        joint_axis=np.concatenate([model.joint_axis, np.zeros((k, 3))]),
-        joint_q_index=np.concatenate([model.joint_q_index, [-1] * k]),
-        joint_multiplier=np.concatenate([model.joint_multiplier, np.ones(k)]),
-        joint_offset=np.concatenate([model.joint_offset, np.zeros(k)]),
-        visuals=model.visuals + geometries, collisions=model.collisions + geometries)
-    centers, radii, links = [spheres.centers], [spheres.radii], [spheres.sphere_link]
-    for i, geoms in enumerate(geometries):
-        c, r = cover_geometries(geoms, n_spheres=balls)
-        centers.append(c), radii.append(r), links.append(np.full(len(r), n + i))
-    augmented_spheres = SphereModel(augmented.link_names, np.concatenate(links), np.concatenate(centers),
-                                    np.concatenate(radii), spheres.covering)
-    body = rigid_bodies(model)
-    allowed = np.zeros((n + k, n + k), dtype=bool)
-    allowed[:n, :n] = acm
-    for i, obj in enumerate(attached):
-        touching = body == body[parents[i]]
-        touching[[model.link_index(name) for name in obj.touch_links]] = True
-        allowed[n + i, :n] = allowed[:n, n + i] = touching
-        for j in range(k):  # objects held by the same body may touch each other
-            allowed[n + i, n + j] = body[parents[i]] == body[parents[j]]
-    return augmented, augmented_spheres, allowed
 
 
 def ball_joint_weights(model: RobotModel, links: np.ndarray, centers: np.ndarray, radii: np.ndarray) -> np.ndarray:

@@ -9,9 +9,9 @@ from prehensile.scene.moveit import (
     load_motion_plan_request,
     load_moveit_scene,
 )
-from prehensile.scene.scene import Body, PlacedRobot, Scene
+from prehensile.scene.scene import Body, Hold, PlacedRobot, Scene
 
 __all__ = [
-    "Body", "MBMProblem", "SceneCheck", "bundled_scene_path", "bundled_scenes", "check_scene", "MotionPlanRequest", "PlacedRobot", "Scene", "iter_mbm_problems",
+    "Body", "Hold", "MBMProblem", "SceneCheck", "bundled_scene_path", "bundled_scenes", "check_scene", "MotionPlanRequest", "PlacedRobot", "Scene", "iter_mbm_problems",
     "load_motion_plan_request", "load_moveit_scene", "load_scene", "save_scene",
 ]

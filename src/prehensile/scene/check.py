@@ -3,7 +3,10 @@
 Each robot is checked for self-collisions (minus the model's disabled pairs) and against the
 world: the scene's obstacles and objects plus the collision shapes of every *other* robot,
 placed by forward kinematics. Another robot's shapes appear as obstacles called
-``"<robot>/<link>"``, so a robot-robot contact is reported by both robots.
+``"<robot>/<link>"``, so a robot-robot contact is reported by both robots. An object a robot
+holds (:class:`~prehensile.scene.scene.Hold`) is part of that robot, a link called
+``"attached/<object>"`` (its contacts with the robot's other links are self contacts), and an
+obstacle for the other robots.
 """
 
 from __future__ import annotations
@@ -112,32 +115,35 @@ def check_scene(scene: Scene, method: str = "exact") -> SceneCheck:
     """
     if method not in METHODS:
         raise SceneError(f"unknown collision method '{method}'; valid: {', '.join(METHODS)}")
-    world = scene.collision_obstacles()
     others = {robot.name: robot_obstacles(robot) for robot in scene.robots}
     results = []
     for robot in scene.robots:
-        obstacles = world + [o for name, obs in others.items() if name != robot.name for o in obs]
-        results.append(_check_robot(robot, obstacles, method))
+        obstacles = scene.collision_obstacles(robot.name) + [o for name, obs in others.items() if name != robot.name
+                                                             for o in obs]
+        results.append(_check_robot(robot, obstacles, method, scene.attached_objects(robot.name)))
     return SceneCheck(method, tuple(results))
 
 
-def _check_robot(robot: PlacedRobot, obstacles: list[Obstacle], method: str) -> RobotCheck:
-    q = robot.configuration
-    from prehensile.collision import ExactChecker
+def _check_robot(robot: PlacedRobot, obstacles: list[Obstacle], method: str, attached: tuple) -> RobotCheck:
+    """Check ``robot`` holding the ``attached`` objects (:class:`~prehensile.collision.AttachedObject`)."""
+    from prehensile.collision import ExactChecker, SphereChecker, allowed_collision_matrix, attach_objects
+    from prehensile.collision.spheres import generate_sphere_model
 
+    q = robot.configuration
+    balls = generate_sphere_model(robot.model) if method == "spheres" else None
+    model, balls, acm = attach_objects(robot.model, balls, allowed_collision_matrix(robot.model), attached)
     if method == "exact":
-        checker = ExactChecker(robot.model, obstacles, T_world_base=robot.T_world_base)
+        checker = ExactChecker(model, obstacles, T_world_base=robot.T_world_base, acm=acm)
         contacts = _merge(robot.name, checker.collisions(q, "world"), "world") + _merge(
             robot.name, checker.collisions(q, "self"), "self")
         return RobotCheck(robot.name, not contacts, contacts)
-    from prehensile.collision import SphereChecker
-
-    checker = SphereChecker(robot.model, obstacles, T_world_base=robot.T_world_base)
-    exact = ExactChecker(robot.model, obstacles, T_world_base=robot.T_world_base) if checker.static_hit else None
+    checker = SphereChecker(model, obstacles, T_world_base=robot.T_world_base, spheres=balls, acm=acm)
+    exact = ExactChecker(model, obstacles, T_world_base=robot.T_world_base, acm=acm) if checker.static_hit else None
     if exact is not None and not exact.root_contacts(q):
         # only the bounding balls of the base meet the world (a robot on a table): the base
         # never moves, so its exact geometry decides, as in planning
-        checker = SphereChecker(robot.model, obstacles, T_world_base=robot.T_world_base, static_hit=False)
+        checker = SphereChecker(model, obstacles, T_world_base=robot.T_world_base, spheres=balls, acm=acm,
+                                static_hit=False)
     if checker.is_free(q):
         return RobotCheck(robot.name, True, ())
     # the balls name the links, not the obstacle ("world"), and measure no depth

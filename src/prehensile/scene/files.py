@@ -16,12 +16,16 @@ Schema (format version 1; lengths in m, angles in rad)::
       - name: table                  # unique among obstacles and objects
         pose: {position: [0.5, 0, 0.37]}
         shape: {type: box, size: [1.0, 0.8, 0.74]}
-    objects:                         # movable bodies (same keys as obstacles)
+    objects:                         # movable bodies (same keys as obstacles, and held_by)
       - name: mug
         pose: {position: [0.4, 0.1, 0.79]}
         shapes:                      # several shapes: use 'shapes' (a list) instead of 'shape'
           - {type: cylinder, radius: 0.04, length: 0.1}
           - {type: box, size: [0.01, 0.03, 0.06], pose: {position: [0.05, 0, 0]}}
+        held_by:                     # optional: a robot link carries it (pose: where it is now)
+          robot: arm
+          link: panda_hand
+          touch_links: [panda_leftfinger, panda_rightfinger]   # optional: may touch these too
 
 Shape types and pose keys are listed in :mod:`prehensile.scene.schema`. Every problem is a
 :class:`~prehensile.errors.SceneError` naming the file, the entry (``obstacles[2] 'shelf'``)
@@ -40,7 +44,7 @@ import yaml
 
 from prehensile.errors import PrehensileError, SceneError, missing_file
 from prehensile.model.robot_model import RobotModel
-from prehensile.scene.scene import Body, PlacedRobot, Scene
+from prehensile.scene.scene import Body, Hold, PlacedRobot, Scene
 from prehensile.storage import atomic_write_text
 from prehensile.scene.schema import (
     YamlLoader, check_keys, number, read_pose, read_shape, relative_path, write_pose, write_shape,
@@ -50,6 +54,8 @@ FORMAT_VERSION = 1
 SCENE_KEYS = ("version", "robots", "obstacles", "objects")
 ROBOT_KEYS = ("name", "robot", "pose", "joints", "goal")
 BODY_KEYS = ("name", "pose", "shape", "shapes")
+OBJECT_KEYS = BODY_KEYS + ("held_by",)
+HOLD_KEYS = ("robot", "link", "touch_links")
 _MODEL_SUFFIXES = (".urdf", ".xml", ".mjcf", ".srdf")
 
 
@@ -92,9 +98,10 @@ def scene_from_dict(data: Any, base_dir: Path, source: str = "<scene>") -> Scene
         for i, entry in enumerate(_list(data, "robots", source))
     )
     _unique([r.name for r in robots], f"{source}: robots")
+    placed = {robot.name: robot.model for robot in robots}
     bodies = {
         key: tuple(
-            _read_body(entry, base_dir, f"{source}: {key}[{i}]{_label(entry)}")
+            _read_body(entry, base_dir, f"{source}: {key}[{i}]{_label(entry)}", placed if key == "objects" else None)
             for i, entry in enumerate(_list(data, key, source))
         )
         for key in ("obstacles", "objects")
@@ -219,8 +226,11 @@ def _read_joints(values: Any, model: RobotModel, where: str) -> np.ndarray:
     return q
 
 
-def _read_body(entry: Any, base_dir: Path, where: str) -> Body:
-    check_keys(entry, BODY_KEYS, where, required=("name",))
+def _read_body(entry: Any, base_dir: Path, where: str, robots: Mapping[str, RobotModel] | None) -> Body:
+    """An obstacle (``robots`` None) or an object, which a robot of ``robots`` (name -> model) may hold."""
+    if robots is None and isinstance(entry, Mapping) and "held_by" in entry:
+        raise SceneError(f"{where}.held_by: an obstacle cannot be held; list the body under 'objects'")
+    check_keys(entry, BODY_KEYS if robots is None else OBJECT_KEYS, where, required=("name",))
     name = entry["name"]
     if not isinstance(name, str) or not name:
         raise SceneError(f"{where}.name: expected a non-empty string, got {name!r}")
@@ -233,7 +243,24 @@ def _read_body(entry: Any, base_dir: Path, where: str) -> Body:
         if not isinstance(shapes, list) or not shapes:
             raise SceneError(f"{where}.shapes: expected a non-empty list of shapes")
         geometries = tuple(read_shape(s, base_dir, f"{where}.shapes[{i}]") for i, s in enumerate(shapes))
-    return Body(name, geometries, read_pose(entry.get("pose"), where))
+    hold = None if entry.get("held_by") is None else _read_hold(entry["held_by"], robots, f"{where}.held_by")
+    return Body(name, geometries, read_pose(entry.get("pose"), where), hold)
+
+
+def _read_hold(entry: Any, robots: Mapping[str, RobotModel], where: str) -> Hold:
+    check_keys(entry, HOLD_KEYS, where, required=("robot", "link"))
+    robot = entry["robot"]
+    if robot not in robots:
+        raise SceneError(f"{where}.robot: no robot {robot!r} in the scene; robots: {', '.join(robots) or '(none)'}")
+    model = robots[robot]
+    touch = entry.get("touch_links") or []
+    if not isinstance(touch, list):
+        raise SceneError(f"{where}.touch_links: expected a list of link names, got {touch!r}")
+    for key, link in [("link", entry["link"])] + [(f"touch_links[{i}]", name) for i, name in enumerate(touch)]:
+        if link not in model.link_names:
+            raise SceneError(f"{where}.{key}: robot '{robot}' ({model.name}) has no link {link!r}; links: "
+                             f"{', '.join(model.link_names)}")
+    return Hold(robot, entry["link"], tuple(touch))
 
 
 def _write_robot(robot: PlacedRobot, base_dir: Path) -> dict:
@@ -268,6 +295,10 @@ def _write_body(body: Body, base_dir: Path) -> dict:
         out["shape"] = shapes[0]
     else:
         out["shapes"] = shapes
+    if body.held_by is not None:
+        hold = body.held_by
+        out["held_by"] = {"robot": hold.robot, "link": hold.link, **({"touch_links": list(hold.touch_links)}
+                                                                      if hold.touch_links else {})}
     return out
 
 

@@ -2,6 +2,8 @@
 
 Every body is a :class:`Body`: a name, a world pose ``T_world_body`` (4, 4) and the geometry
 attached to it (each :class:`~prehensile.model.geometry.Geometry` placed in the body frame).
+An object may be held by a robot link (:class:`Hold`): it then moves with that link and is
+part of the robot, not of its world (:meth:`Scene.attached_objects`).
 """
 
 from __future__ import annotations
@@ -10,19 +12,32 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from prehensile.collision.attached import AttachedObject
 from prehensile.collision.world import Obstacle
 from prehensile.kinematics.forward import forward_kinematics
 from prehensile.model.geometry import Geometry
 from prehensile.model.robot_model import RobotModel
+from prehensile.spatial.transforms import invert
+
+
+@dataclass(frozen=True)
+class Hold:
+    """How a robot holds an object: ``link`` of robot ``robot`` carries it, and the object may
+    touch ``touch_links`` (e.g. the fingers) besides the links rigidly fixed to ``link``."""
+
+    robot: str
+    link: str
+    touch_links: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True, eq=False)
 class Body:
-    """A rigid body in the world: obstacle or graspable object."""
+    """A rigid body in the world: obstacle or graspable object; ``held_by`` a robot or None."""
 
     name: str
     geometries: tuple[Geometry, ...]
     T_world_body: np.ndarray = field(default_factory=lambda: np.eye(4))
+    held_by: Hold | None = None
 
     def world_geometries(self) -> list[tuple[Geometry, np.ndarray]]:
         """Each geometry with its world pose ``T_world_geom`` (4, 4)."""
@@ -81,10 +96,31 @@ class Scene:
         """Obstacles and objects: everything a robot may collide with."""
         return self.obstacles + self.objects
 
-    def collision_obstacles(self) -> list[Obstacle]:
-        """Every shape of every obstacle and object, placed in the world."""
+    def robot(self, name: str) -> PlacedRobot:
+        """The robot called ``name``; KeyError if there is none."""
+        for robot in self.robots:
+            if robot.name == name:
+                return robot
+        raise KeyError(name)
+
+    def collision_obstacles(self, robot: str | None = None) -> list[Obstacle]:
+        """Every shape of every obstacle and object, placed in the world; without the objects
+        held by ``robot`` (a robot name), which move with it (:meth:`attached_objects`)."""
         return [
             Obstacle(body.name, geometry.shape, T_world_geom)
             for body in self.bodies
+            if robot is None or body.held_by is None or body.held_by.robot != robot
             for geometry, T_world_geom in body.world_geometries()
         ]
+
+    def attached_objects(self, robot: str) -> tuple[AttachedObject, ...]:
+        """The objects held by robot ``robot``, fixed to their links where the scene places them:
+        ``T_link_object`` from the link's pose at the robot's configuration and the object's
+        world pose."""
+        placed = self.robot(robot)
+        poses = placed.link_poses()
+        return tuple(
+            AttachedObject(body.name, body.held_by.link, body.geometries,
+                           invert(poses[placed.model.link_index(body.held_by.link)]) @ body.T_world_body,
+                           body.held_by.touch_links)
+            for body in self.objects if body.held_by is not None and body.held_by.robot == robot)
