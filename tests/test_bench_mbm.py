@@ -197,6 +197,50 @@ def test_unusable_ends_are_reported_with_their_reason_and_unplanned_joints_clipp
     assert "request0002.yaml: start_state: Elbow_L = -2.5 outside the joint limits and not planned" in caplog.text
 
 
+def test_an_attached_collision_object_moves_with_the_hand(tmp_path):
+    """A rod held in the Panda's hand (the scene's robot_state.attached_collision_objects) is
+    planned with: a goal that puts it into the table is invalid although the bare hand stays
+    3 cm above it; a goal above the table is reached without collision, the rod included."""
+    import yaml
+
+    from prehensile import robots
+    from prehensile.collision import ExactChecker
+    from prehensile.scene.moveit import load_moveit_scene
+
+    model = robots.load("panda")
+    arm = [f"panda_joint{i}" for i in range(1, 8)]
+    rod = {"id": "rod", "primitives": [{"type": "box", "dimensions": [0.02, 0.02, 0.2]}],
+           "primitive_poses": [{"position": [0, 0, 0.15], "orientation": [0, 0, 0, 1]}]}  # 10 cm past the fingertips
+    start = [0, 0, 0, -1.5, 0, 1.5, 0.785]
+    state = {"joint_state": {"name": arm + ["panda_finger_joint1"], "position": start + [0.01]},
+             "attached_collision_objects": [{"link_name": "panda_hand", "object": rod,
+                                             "touch_links": ["panda_leftfinger", "panda_rightfinger"]}]}
+    table = {"id": "table", "primitives": [{"type": "box", "dimensions": [0.6, 1.0, 0.1]}],
+             "primitive_poses": [{"position": [0.6, 0, 0.05], "orientation": [0, 0, 0, 1]}]}  # top at z = 0.1
+    folder = tmp_path / "problems" / "held"
+    folder.mkdir(parents=True)
+    goals = ([0.6, 0, 0, -1.5, 0, 1.5, 0.785], [0.6, 0.5, 0, -1.9, 0, 2.4, 0.785])  # fingertips at 0.55 / 0.13 m
+    for k, goal in enumerate(goals, 1):
+        scene = {"name": f"held{k}", "robot_state": state, "world": {"collision_objects": [table]}}
+        request = {"group_name": "panda_arm", "start_state": {"joint_state": state["joint_state"]},
+                   "goal_constraints": [{"joint_constraints": [{"joint_name": n, "position": v}
+                                                               for n, v in zip(arm, goal)]}]}
+        (folder / f"scene{k:04d}.yaml").write_text(yaml.safe_dump(scene))
+        (folder / f"request{k:04d}.yaml").write_text(yaml.safe_dump(request))
+    out = tmp_path / "report.json"
+    result = runner.invoke(app, ["bench", "mbm", str(tmp_path / "problems"), "--robot", "panda", "--budget", "1",
+                                 "--json", str(out)])
+    assert result.exit_code == 0, result.output
+    report = json.loads(out.read_text())
+    above, into = (run["ours"] for run in report["runs"])
+    assert above["status"] == "success" and report["overall"]["colliding_paths"] == 0
+    assert into["status"] == "invalid_goal" and "attached/rod collides with table" in into["reason"]
+    q = model.neutral_configuration()
+    q[:7] = goals[1]
+    world = load_moveit_scene(folder / "scene0002.yaml", model).collision_obstacles("panda")
+    assert ExactChecker(model, world).is_free(q)  # the hand alone is free there
+
+
 def test_a_timeout_names_the_end_only_the_balls_reject(tmp_path):
     """A start inside the conservative balls but free on the geometry, with no escape in the budget."""
     from prehensile.benchmarking.mbm import MBMSettings, PreparedProblem, _record, load_problems

@@ -17,6 +17,7 @@ from prehensile.model import load_urdf
 from prehensile.model.geometry import Box, Cylinder, Sphere
 from prehensile.scene import iter_mbm_problems, load_motion_plan_request, load_moveit_scene, load_scene, save_scene
 from prehensile.scene.moveit import motion_plan_request_from_dict, moveit_scene_from_dict
+from prehensile.spatial import make_pose
 
 MBM = SHARED / "bench" / "mbm" / "panda"
 TARBALL = MBM / "problems.tar.bz2"
@@ -180,11 +181,51 @@ def test_objects_may_sit_in_the_robots_root_frame():
     np.testing.assert_allclose((body.T_world_body @ body.geometries[0].T_link_geom)[:3, 3], [1.1, 2.0, 0.5])
     with pytest.raises(SceneError, match=f"frame '{model.link_names[0]}' is not supported"):
         moveit_scene_from_dict({"world": {"collision_objects": [obj]}}, "s.yaml")  # no robot: no root frame
-    in_the_hand = {**obj, "header": {"frame_id": "panda_hand"}}
-    fixed = [{"child_frame_id": "world", "transform": {"translation": [0, 0, 0], "rotation": [0, 0, 0, 1]}}]
-    with pytest.raises(SceneError, match="frame 'panda_hand' is not supported; valid: world, panda_link0$"):
-        moveit_scene_from_dict({"fixed_frame_transforms": fixed, "robot_state": base,
-                                "world": {"collision_objects": [in_the_hand]}}, "s.yaml", model)
+    in_the_hand = {**obj, "header": {"frame_id": "panda_hand"}}  # placed where the state puts the hand
+    scene = moveit_scene_from_dict({"robot_state": base, "world": {"collision_objects": [in_the_hand]}}, "s.yaml",
+                                   model)
+    T_world_hand = scene.robots[0].link_poses()[model.link_index("panda_hand")]
+    np.testing.assert_allclose(scene.obstacles[0].T_world_body, T_world_hand, atol=1e-12)
+    with pytest.raises(SceneError, match="frame 'panda_hand' is not supported; valid: world$"):
+        moveit_scene_from_dict({"world": {"collision_objects": [in_the_hand]}}, "s.yaml")  # no robot
+
+
+def _attached(link: str = "panda_hand", frame: str = "", touch=("panda_leftfinger", "panda_rightfinger")) -> dict:
+    """A robot state holding a 20 cm rod 10 cm below ``link`` (in ``frame``; '' is the link's)."""
+    rod = {"id": "rod", "header": {"frame_id": frame}, "primitives": [{"type": "box", "dimensions": [0.02, 0.02, 0.2]}],
+           "primitive_poses": [{"position": [0, 0, 0.1], "orientation": [0, 0, 0, 1]}]}
+    return {"joint_state": {"name": ["panda_joint4"], "position": [-1.5]}, "multi_dof_joint_state": {
+        "transforms": [{"translation": [0.5, 0.0, 0.0], "rotation": [0, 0, 0, 1]}]},
+        "attached_collision_objects": [{"link_name": link, "object": rod, "touch_links": list(touch)}]}
+
+
+@needs_mbm
+def test_attached_collision_objects_are_held_by_their_link(caplog):
+    from prehensile import robots
+    from prehensile.scene import Hold
+
+    model = robots.load("panda")
+    for frame in ("", "panda_hand", "world"):
+        scene = moveit_scene_from_dict({"robot_state": _attached(frame=frame)}, "s.yaml", model)
+        (rod,) = scene.objects
+        assert rod.name == "rod" and not scene.obstacles
+        assert rod.held_by == Hold("panda", "panda_hand", ("panda_leftfinger", "panda_rightfinger"))
+        (attached,) = scene.attached_objects("panda")
+        if frame != "world":  # in the hand's frame: 10 cm along its z-axis
+            np.testing.assert_allclose(attached.T_link_object @ attached.geometries()[0].T_link_geom,
+                                       make_pose(position=[0.0, 0.0, 0.1]), atol=1e-12)
+        else:  # given in the world frame: the rod stands at the origin, wherever the hand is
+            robot = scene.robots[0]
+            T_world_hand = robot.link_poses()[model.link_index("panda_hand")]
+            np.testing.assert_allclose(T_world_hand @ attached.T_link_object, np.eye(4), atol=1e-12)
+        assert not scene.collision_obstacles("panda") and len(scene.collision_obstacles()) == 1
+    with pytest.raises(SceneError, match=r"attached_collision_objects\[0\].link_name: robot 'panda' has no link 'paw'"):
+        moveit_scene_from_dict({"robot_state": _attached(link="paw")}, "s.yaml", model)
+    with pytest.raises(SceneError, match=r"\[0\].touch_links\[1\]: robot 'panda' has no link 'thumb'"):
+        moveit_scene_from_dict({"robot_state": _attached(touch=("panda_hand", "thumb"))}, "s.yaml", model)
+    with caplog.at_level(logging.WARNING):
+        assert not moveit_scene_from_dict({"robot_state": _attached()}, "s.yaml").objects  # no robot to hold it
+    assert "attached_collision_objects skipped" in caplog.text
 
 
 def test_object_pose_composes_with_primitive_poses():

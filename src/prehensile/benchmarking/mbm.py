@@ -185,10 +185,11 @@ class PreparedProblem:
         joints = planned_joints(model, problem)
         check_request(model, problem, joints)
         self.q_start, self.q_goal = _clip_unplanned(model, problem, joints)
-        T_world_base = problem.scene.robots[0].T_world_base if problem.scene.robots else None
-        self.ctx = PlanningContext(model, problem.scene.collision_obstacles(), joints=joints,
-                                   q_ref=self.q_start, T_world_base=T_world_base, spheres=spheres[0],
-                                   cover=spheres[1], resolution=settings.resolution,
+        scene = problem.scene
+        robot, T_world_base = (scene.robots[0].name, scene.robots[0].T_world_base) if scene.robots else (None, None)
+        self.ctx = PlanningContext(model, scene.collision_obstacles(robot), joints=joints, q_ref=self.q_start,
+                                   T_world_base=T_world_base, spheres=spheres[0], cover=spheres[1],
+                                   attached=scene.attached_objects(robot), resolution=settings.resolution,
                                    certify_resolution=settings.certify_resolution)
         # the exact certifier is built on first use: build it here, outside the timed planner call
         _ = self.ctx.certifier

@@ -10,8 +10,13 @@ MoveIt conventions and how they are mapped:
   primitive or mesh; the shape's world pose is ``T_world_object @ T_object_shape``. Without an
   object pose the per-shape poses are world poses (older MoveIt).
 - ``header.frame_id`` must be empty, ``world``, a frame of ``fixed_frame_transforms`` or, when the
-  scene is read for a robot, the robot's root link (placed by ``robot_state``); other frames
-  (moving robot links) are rejected with a :class:`~prehensile.errors.SceneError`.
+  scene is read for a robot, one of its links, placed by ``robot_state`` (as MoveIt places an
+  object given in a link frame: where that link is in the scene's state); other frames are
+  rejected with a :class:`~prehensile.errors.SceneError`.
+- ``robot_state.attached_collision_objects`` (read for a robot) become objects held by their
+  ``link_name`` (:class:`~prehensile.scene.scene.Hold`, with the ``touch_links``); an empty
+  ``header.frame_id`` of such an object is its link's frame. Without a robot they are skipped
+  with a warning.
 - Primitive dimensions follow ``shape_msgs/SolidPrimitive``: box ``[x, y, z]`` (full sides),
   sphere ``[radius]``, cylinder ``[height, radius]`` (note the order: height first), cone
   ``[height, radius]``. A cone becomes a **conservative cylinder** of the same height and base
@@ -28,6 +33,7 @@ MoveIt conventions and how they are mapped:
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import os
 import re
@@ -43,7 +49,7 @@ import yaml
 from prehensile.errors import SceneError, missing_file
 from prehensile.model.geometry import Box, Cylinder, Geometry, Mesh, Sphere
 from prehensile.model.robot_model import RobotModel
-from prehensile.scene.scene import Body, PlacedRobot, Scene
+from prehensile.scene.scene import Body, Hold, PlacedRobot, Scene
 from prehensile.scene.schema import YamlLoader
 from prehensile.spatial import make_pose, quaternion_to_matrix
 
@@ -113,7 +119,8 @@ class MBMProblem:
 
 
 def load_moveit_scene(path: str | os.PathLike, robot: RobotModel | None = None) -> Scene:
-    """Read a MoveIt PlanningScene YAML file; collision objects become obstacles.
+    """Read a MoveIt PlanningScene YAML file; collision objects become obstacles, attached ones
+    (given a robot) objects held by its links.
 
     Args:
         path: the ``sceneNNNN.yaml`` file.
@@ -177,17 +184,45 @@ def moveit_scene_from_dict(data: Any, source: str, robot: RobotModel | None = No
     data = _mapping(data, source)
     frames = {str(t.get("child_frame_id", "")): _transform(t.get("transform", {}), f"{source}: fixed_frame_transforms")
               for t in data.get("fixed_frame_transforms") or [] if isinstance(t, Mapping)}
+    state = _mapping(data.get("robot_state") or {}, f"{source}: robot_state")
     robots: tuple[PlacedRobot, ...] = ()
+    held: tuple[Body, ...] = ()
     if robot is not None:
-        robots = (_placed_robot(data.get("robot_state") or {}, robot, f"{source}: robot_state"),)
-        frames.setdefault(robot.link_names[0], robots[0].T_world_base)  # the robot's root link
+        robots = (_placed_robot(state, robot, f"{source}: robot_state"),)
+        for link, T_world_link in zip(robot.link_names, robots[0].link_poses()):
+            frames.setdefault(link, T_world_link)
+        held = _attached_objects(state, robots[0], frames, f"{source}: robot_state")
+    elif state.get("attached_collision_objects"):
+        log.warning("%s: robot_state.attached_collision_objects skipped: read the scene for a robot model to "
+                    "attach them", source)
     world = _mapping(data.get("world") or {}, f"{source}: world")
     objects = world.get("collision_objects") or []
     bodies = tuple(
         _collision_object(obj, frames, f"{source}: world.collision_objects[{i}]{_label(obj)}")
         for i, obj in enumerate(objects)
     )
-    return Scene(robots=robots, obstacles=bodies, source=source)
+    return Scene(robots=robots, obstacles=bodies, objects=held, source=source)
+
+
+def _attached_objects(state: Mapping, robot: PlacedRobot, frames: Mapping[str, np.ndarray],
+                      where: str) -> tuple[Body, ...]:
+    """The ``attached_collision_objects`` of a robot state: bodies held by their links, placed
+    where ``robot`` (at the state) holds them."""
+    model, out = robot.model, []
+    for i, entry in enumerate(state.get("attached_collision_objects") or []):
+        at = f"{where}.attached_collision_objects[{i}]"
+        entry = _mapping(entry, at)
+        link, touch = str(entry.get("link_name", "")), [str(name) for name in entry.get("touch_links") or []]
+        for key, name in [("link_name", link)] + [(f"touch_links[{k}]", name) for k, name in enumerate(touch)]:
+            if name not in model.link_names:
+                raise SceneError(f"{at}.{key}: robot '{model.name}' has no link '{name}'; links: "
+                                 f"{', '.join(model.link_names)}")
+        obj = _mapping(entry.get("object") or {}, f"{at}.object")
+        header = _mapping(obj.get("header") or {}, f"{at}.object.header")
+        obj = {**obj, "header": {**header, "frame_id": header.get("frame_id") or link}}
+        body = _collision_object(obj, frames, f"{at}.object{_label(obj)}")
+        out.append(dataclasses.replace(body, held_by=Hold(robot.name, link, tuple(touch))))
+    return tuple(out)
 
 
 def motion_plan_request_from_dict(data: Any, source: str) -> MotionPlanRequest:

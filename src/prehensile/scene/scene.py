@@ -113,14 +113,15 @@ class Scene:
             for geometry, T_world_geom in body.world_geometries()
         ]
 
-    def attached_objects(self, robot: str) -> tuple[AttachedObject, ...]:
+    def attached_objects(self, robot: str | None) -> tuple[AttachedObject, ...]:
         """The objects held by robot ``robot``, fixed to their links where the scene places them:
         ``T_link_object`` from the link's pose at the robot's configuration and the object's
-        world pose."""
+        world pose. () if it holds none."""
+        held = [body for body in self.objects if body.held_by is not None and body.held_by.robot == robot]
+        if not held:
+            return ()
         placed = self.robot(robot)
         poses = placed.link_poses()
-        return tuple(
-            AttachedObject(body.name, body.held_by.link, body.geometries,
-                           invert(poses[placed.model.link_index(body.held_by.link)]) @ body.T_world_body,
-                           body.held_by.touch_links)
-            for body in self.objects if body.held_by is not None and body.held_by.robot == robot)
+        return tuple(AttachedObject(body.name, body.held_by.link, body.geometries,
+                                    invert(poses[placed.model.link_index(body.held_by.link)]) @ body.T_world_body,
+                                    body.held_by.touch_links) for body in held)
