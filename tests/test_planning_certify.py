@@ -10,7 +10,7 @@ from prehensile.collision.spheres import generate_sphere_model
 from prehensile.collision.world import Obstacle
 from prehensile.errors import PrehensileError
 from prehensile.model.builder import JointSpec, LinkSpec, build_model
-from prehensile.model.geometry import Box, Capsule, Geometry, Mesh
+from prehensile.model.geometry import Box, Capsule, Geometry, Mesh, Sphere
 from prehensile.kinematics import forward_kinematics
 from prehensile.planning import AttachedObject, PlanningContext, certify_path
 from prehensile.planning.certify import ExactCertifier, _cover_distance
@@ -192,3 +192,21 @@ def test_an_invalid_input_path_names_the_links_that_collide():
     with pytest.raises(PrehensileError, match=r"edge 0 \(waypoint 0 to 1\) is not: links (torso and l_wrist|l_wrist "
                                               r"and torso) collide"):
         check_valid_path(ctx, np.stack([a, b]), "test")
+
+
+def test_a_path_starting_wholly_inside_a_closed_mesh_fails():
+    """A pebble inside a link's closed box mesh never meets its surface while the link turns
+    about it: only the containment test at the path's start shows the collision."""
+    box = trimesh.creation.box(extents=(0.4, 0.4, 0.4))
+    links = [LinkSpec("base"), LinkSpec("cage", collisions=[Geometry(Mesh.from_arrays(box.vertices, box.faces))])]
+    model = build_model("cage", "test", links,
+                        [JointSpec("j1", "revolute", "base", "cage", np.eye(4), [0, 0, 1.0], -3.0, 3.0)])
+    path = np.array([[-1.0], [1.0]])
+    for position, inside in (([0.0, 0.0, 0.0], True), ([0.15, 0.05, 0.0], True), ([0.5, 0.0, 0.0], False)):
+        pebble = Obstacle("pebble", Sphere(0.01), make_pose(position=position))
+        ctx = PlanningContext(model, [pebble], spheres=generate_sphere_model(model, cache=False))
+        report = certify_path(ctx, path)
+        assert report.ok == (not inside) == bool(ctx.exact.is_free(path[0])), position
+        if inside:
+            assert report.first_bad_segment == 0 and report.colliding_links == ("cage",)
+            assert ctx.exact.is_free(ctx.space.interpolate(path[0], path[1], 0.01)).sum() == 0

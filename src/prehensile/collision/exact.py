@@ -9,7 +9,8 @@ mesh. The checks of single configurations here (:meth:`ExactChecker.is_free`,
 convex hulls meet but the surfaces do not, a point of one body inside the other closed mesh
 (winding number) is a collision. Open meshes (a sheet, a crate's walls without thickness) stay
 surfaces. Along a path, a body cannot get inside without crossing a surface, which the
-certification finds. This checker certifies paths; planners use
+certification finds; it tests containment at the path's start. This checker certifies paths;
+planners use
 :class:`~prehensile.collision.sphere_checker.SphereChecker`.
 """
 
@@ -255,14 +256,20 @@ def obstacle_parts(obstacles: Sequence[Obstacle]) -> tuple[ObstaclePart, ...]:
     return tuple(parts)
 
 
-def _contains(a: tuple, b: tuple) -> bool:
-    """Whether the placed geometry a is a closed mesh with b's anchor inside (b wholly inside
-    it, if their surfaces do not meet)."""
-    if a[_CLOSED] is None:
+def contains(closed: np.ndarray | None, T_world_closed: np.ndarray, anchor: np.ndarray,
+             T_world_anchor: np.ndarray) -> bool:
+    """Whether the closed mesh ``closed`` (F, 3, 3, None: not a closed mesh) at pose
+    ``T_world_closed`` (4, 4) holds the point ``anchor`` (3,) of another geometry at
+    ``T_world_anchor``: that geometry lies wholly inside the mesh if their surfaces do not meet."""
+    if closed is None:
         return False
-    Ta, Tb = a[_MATRIX], b[_MATRIX]
-    point = Tb[:3, :3] @ b[_ANCHOR] + Tb[:3, 3]
-    return inside_closed_mesh(a[_CLOSED], Ta[:3, :3].T @ (point - Ta[:3, 3]))
+    point = T_world_anchor[:3, :3] @ anchor + T_world_anchor[:3, 3]
+    return inside_closed_mesh(closed, T_world_closed[:3, :3].T @ (point - T_world_closed[:3, 3]))
+
+
+def _contains(a: tuple, b: tuple) -> bool:
+    """:func:`contains` for the placed geometries a (the closed one) and b."""
+    return contains(a[_CLOSED], a[_MATRIX], b[_ANCHOR], b[_MATRIX])
 
 
 class ExactChecker:

@@ -25,8 +25,11 @@ of the link's balls to the obstacle's shape (or to the other link's balls) while
 touch; else coal on convex bounds (the convex hull of a mesh, the primitive itself),
 which contain the geometry; and only where a hull overlaps, the exact mesh
 (``coal.collide``, then the exact distance for the bubble). Every bound comes from shapes that
-contain the geometry, and a collision is only ever declared by the exact geometry. Meshes are
-surfaces, as in :class:`~prehensile.collision.exact.ExactChecker`.
+contain the geometry, and a collision is only ever declared by the exact geometry. Along the
+path meshes are surfaces (a body entering a mesh crosses it); at the path's start a geometry
+wholly inside a closed mesh collides, as in :class:`~prehensile.collision.exact.ExactChecker`
+(tested where the pair's bounds meet: covering balls must hold the solid, as generated ones
+do, not only its surface).
 """
 
 from __future__ import annotations
@@ -41,7 +44,7 @@ from numba import njit
 
 from prehensile.clock import clock
 from prehensile.collision import sphere_kernels as SK
-from prehensile.collision.exact import ObstaclePart, enclosing_ball, obstacle_parts, robot_parts
+from prehensile.collision.exact import ObstaclePart, contains, enclosing_ball, obstacle_parts, robot_parts
 from prehensile.collision.sphere_checker import obstacle_arrays
 from prehensile.collision.spheres import SphereModel
 from prehensile.collision.world import Obstacle
@@ -172,6 +175,18 @@ class ExactCertifier:
             return -1.0, 2
         return max(coal.distance(exact_a, Ta, exact_b, Tb, self._request, coal.DistanceResult()) - _TOLERANCE, 0.0), 3
 
+    def _nested(self, p: int, poses: np.ndarray) -> bool:
+        """Whether one geometry of pair p lies wholly inside the other, a closed mesh, with the
+        links at ``poses`` (L, 4, 4) (asked where the surfaces do not meet)."""
+        a, o, b = self._pairs[p]
+        sides = [(part.closed, poses[part.link] @ part.T_link_geom, part.anchor)
+                 for part in [self._parts[a]] + ([] if o >= 0 else [self._parts[b]])]
+        if o >= 0:
+            obstacle = self._obstacles[o]
+            sides.append((obstacle.closed, obstacle.T_world_shape, obstacle.anchor))
+        (closed_a, T_a, anchor_a), (closed_b, T_b, anchor_b) = sides
+        return contains(closed_a, T_a, anchor_b, T_b) or contains(closed_b, T_b, anchor_a, T_a)
+
     def _links_of(self, p: int) -> tuple[str, ...]:
         """Names of the robot links in pair p."""
         a, _, b = self._pairs[p]
@@ -206,7 +221,7 @@ class ExactCertifier:
                 np.empty(count, dtype=np.int64), np.empty(count), np.empty(count), np.empty(self.model.dof))
         safe, early, position, poses, stats = walk[4], walk[5], walk[7], walk[8], walk[-5]
         due, here, bound = walk[-4], walk[-3], walk[-2]
-        queries = 0
+        queries, first = 0, True
         while True:
             m = _next_due(*walk)
             if m < 0:
@@ -218,6 +233,8 @@ class ExactCertifier:
             for k in near:
                 d[k], used_queries = self._lower_bound(int(due[k]), placed)
                 queries += used_queries
+                if first and d[k] >= 0.0 and used_queries == 3 and self._nested(int(due[k]), poses):
+                    d[k] = -1.0  # wholly inside a closed mesh at the start: no surface crossing would show it
                 if d[k] < 0.0:
                     i, t = int(position[0]), position[1]
                     bad = i - 1 if (t == 0.0 and i > 0) else i
@@ -225,6 +242,7 @@ class ExactCertifier:
                                          self._links_of(int(due[k])))
             stats[1] = min(stats[1], float(d.min()))
             safe[due[:m]], early[due[:m]] = here[:m] + d, 0.5 * d + 1e-12  # (rounding: reached exactly is due)
+            first = False
 
 
 @njit(cache=True, _nrt=False)
