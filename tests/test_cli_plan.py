@@ -83,9 +83,10 @@ def test_plan_carries_a_held_object(tmp_path):
     result = _plan("carry_demo", "--out", tmp_path)
     assert result.exit_code == 0, result.output
     path = json.loads((tmp_path / "path.json").read_text())
-    assert path["held_objects"] == {"bottle": "panda_hand"}
     scene = load_scene(bundled_scene_path("carry_demo"))
     robot, (bottle,) = scene.robots[0], scene.attached_objects("panda")
+    assert list(path["held_objects"]) == ["bottle"] and path["held_objects"]["bottle"]["link"] == "panda_hand"
+    np.testing.assert_allclose(path["held_objects"]["bottle"]["T_link_object"], bottle.T_link_object, atol=1e-12)
     model, arm = robot.model, robot.model.chain_q_indices("arm")
     waypoints = np.array(path["waypoints"])
     steps = np.linspace(0.0, 1.0, 400)[:, None]

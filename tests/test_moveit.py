@@ -228,6 +228,57 @@ def test_attached_collision_objects_are_held_by_their_link(caplog):
     assert "attached_collision_objects skipped" in caplog.text
 
 
+@needs_mbm
+def test_an_object_attached_beyond_a_joint_limit_keeps_its_grip():
+    """MBM-like states hold panda_joint4 = 0, beyond its limit: the robot is clipped into the
+    limits, the object keeps its pose in the hand frame that the state as given defines."""
+    from prehensile import robots
+    from prehensile.kinematics import link_pose
+
+    model = robots.load("panda")
+    state = _attached(frame="world")
+    state["joint_state"]["position"] = [0.0]  # panda_joint4, limits [-3.07, -0.07]
+    scene = moveit_scene_from_dict({"robot_state": state}, "s.yaml", model)
+    (rod,) = scene.attached_objects("panda")
+    q_given = model.neutral_configuration()
+    q_given[model.joint_index("panda_joint4")] = 0.0
+    T_hand_world = np.linalg.inv(link_pose(model, q_given, "panda_hand", T_world_base=scene.robots[0].T_world_base))
+    np.testing.assert_allclose(rod.T_link_object, T_hand_world, atol=1e-12)  # the rod's frame is the world's origin
+    assert scene.robots[0].configuration[model.joint_index("panda_joint4")] == pytest.approx(-0.0698, abs=1e-4)
+
+
+def _with(change) -> dict:
+    state = _attached()
+    change(state["attached_collision_objects"])
+    return {"robot_state": state, "world": {"collision_objects": [{
+        "id": "table", "primitives": [{"type": "box", "dimensions": [1, 1, 0.1]}], "primitive_poses": [{}]}]}}
+
+
+@needs_mbm
+@pytest.mark.parametrize("data, fragment", [
+    (_with(lambda a: a.append(dict(a[0]))), "attached_collision_objects[1] 'rod': the object id is used twice"),
+    (_with(lambda a: a[0]["object"].update(id="table")), "[0] 'table': the object id is used twice"),
+    (_with(lambda a: a[0].update(touch_links="panda_leftfinger")), "[0].touch_links: expected a list of link names"),
+    (_with(lambda a: a[0].pop("link_name")), "[0]: missing 'link_name'"),
+    (_with(lambda a: a[0]["object"].pop("id")), "[0].object: missing 'id'"),
+    ({"robot_state": {"attached_collision_objects": {"link_name": "panda_hand"}}},
+     "attached_collision_objects: expected a list, got dict"),
+])
+def test_bad_attached_collision_objects(data, fragment):
+    from prehensile import robots
+
+    with pytest.raises(SceneError) as info:
+        moveit_scene_from_dict(data, "bad.yaml", robots.load("panda"))
+    assert str(info.value).startswith("bad.yaml: robot_state.attached_collision_objects") and fragment in str(info.value)
+
+
+def test_a_request_with_attached_objects_is_refused():
+    start = {"joint_state": {"name": ["j"], "position": [0.0]}, "attached_collision_objects": [{"link_name": "hand"}]}
+    request = {"start_state": start, "goal_constraints": [{"joint_constraints": [{"joint_name": "j", "position": 1}]}]}
+    with pytest.raises(SceneError, match="r.yaml: start_state.attached_collision_objects: not supported in a request"):
+        motion_plan_request_from_dict(request, "r.yaml")
+
+
 def test_object_pose_composes_with_primitive_poses():
     data = {"world": {"collision_objects": [{
         "id": "crate",

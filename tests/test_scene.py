@@ -156,6 +156,11 @@ CASES = [
     ("touch links not a list", lambda d: d["objects"][0].update(held_by={"robot": "arm", "link": "tool",
                                                                          "touch_links": "link2"}),
      ["'ball'.held_by.touch_links", "expected a list of link names"]),
+    ("touch links false", lambda d: d["objects"][0].update(held_by={"robot": "arm", "link": "tool",
+                                                                    "touch_links": False}),
+     ["'ball'.held_by.touch_links", "expected a list of link names"]),
+    ("holder not a name", lambda d: d["objects"][0].update(held_by={"robot": ["arm"], "link": "tool"}),
+     ["'ball'.held_by.robot", "no robot ['arm']", "robots: arm"]),
     ("typo in held_by", lambda d: d["objects"][0].update(held_by={"robot": "arm", "lnk": "tool"}),
      ["'ball'.held_by", "unknown key 'lnk'", "did you mean 'link'"]),
 ]

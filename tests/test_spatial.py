@@ -20,6 +20,18 @@ def test_rpy_matches_scipy_fixed_axes_and_round_trips():
     assert np.allclose(matrix_to_rpy(R), rpy, atol=1e-9)
 
 
+def test_rpy_round_trips_at_and_near_gimbal_lock():
+    """At pitch +-pi/2 only roll -+ yaw is defined; the angles found must still give the
+    rotation back (a scene file saved with them must load the same pose)."""
+    rng = np.random.default_rng(1)
+    rpy = rng.uniform(-np.pi, np.pi, (2000, 3))
+    rpy[:, 1] = np.where(rng.uniform(size=2000) < 0.5, -0.5, 0.5) * np.pi + rng.normal(0.0, 1e-6, 2000)
+    rpy[:10, 1] = 0.5 * np.pi  # exactly
+    for R in (rpy_to_matrix(rpy), quaternion_to_matrix(np.array([[0.5, 0.5, 0.5, -0.5], [0, 0.7071068, 0, -0.7071068]])),
+              Rotation.random(2000, random_state=2).as_matrix()):
+        np.testing.assert_allclose(rpy_to_matrix(matrix_to_rpy(R)), R, atol=1e-12)
+
+
 def test_make_pose_takes_rpy_instead_of_a_rotation():
     rpy = np.random.default_rng(5).uniform(-np.pi, np.pi, (4, 3))
     T = make_pose(rpy=rpy, position=[0.1, 0.2, 0.3])  # a batch of rotations, one position

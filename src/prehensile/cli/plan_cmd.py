@@ -12,8 +12,8 @@ robot's; joints not planned stay at their start values. The world is the scene's
 and objects plus the other robots at their configurations; the objects the robot holds
 (``held_by`` in the scene file) move with their links instead.
 
-Writes to ``--out``: ``path.json`` (status, joint names, waypoints, the held objects and their
-links, statistics; ``path_length_m`` is the workspace-weighted length, a bound on how far any
+Writes to ``--out``: ``path.json`` (status, joint names, waypoints, the held objects with their
+links and poses in them, statistics; ``path_length_m`` is the workspace-weighted length, a bound on how far any
 point of the robot travels), on success ``trajectory.json`` (time-optimal under the limits it
 records, at rest at both ends; the corners are blended by a spline where the exact check
 accepts it, else the motion stops there; with the values of the joints not planned) and always
@@ -143,7 +143,8 @@ def plan_report(result, ctx, scene: Path, robot: PlacedRobot, q_goal: np.ndarray
         "target": None if target is None else target.tolist(),
         "waypoints": space.active(result.path).tolist() if result.success else [],
         "fixed_joints": {j: float(space.q_ref[robot.model.joint_index(j)]) for j in fixed},
-        "held_objects": {obj.name: obj.link for obj in ctx.attached},
+        "held_objects": {obj.name: {"link": obj.link, "T_link_object": np.asarray(obj.T_link_object).tolist()}
+                         for obj in ctx.attached},
         "path_length_m": space.path_length(space.active(result.path)) if result.success else None,
         "stats": dataclasses.asdict(result.stats),
         "reason": _end_reason(result, ctx, robot.configuration, q_goal),

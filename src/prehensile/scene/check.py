@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from prehensile.collision.attached import AttachedObject
 from prehensile.collision.world import Obstacle
 from prehensile.errors import SceneError
 from prehensile.scene.scene import PlacedRobot, Scene
@@ -124,8 +125,9 @@ def check_scene(scene: Scene, method: str = "exact") -> SceneCheck:
     return SceneCheck(method, tuple(results))
 
 
-def _check_robot(robot: PlacedRobot, obstacles: list[Obstacle], method: str, attached: tuple) -> RobotCheck:
-    """Check ``robot`` holding the ``attached`` objects (:class:`~prehensile.collision.AttachedObject`)."""
+def _check_robot(robot: PlacedRobot, obstacles: list[Obstacle], method: str,
+                 attached: tuple[AttachedObject, ...]) -> RobotCheck:
+    """Check ``robot`` holding the ``attached`` objects."""
     from prehensile.collision import ExactChecker, SphereChecker, allowed_collision_matrix, attach_objects
     from prehensile.collision.spheres import generate_sphere_model
 

@@ -250,10 +250,10 @@ def _read_body(entry: Any, base_dir: Path, where: str, robots: Mapping[str, Robo
 def _read_hold(entry: Any, robots: Mapping[str, RobotModel], where: str) -> Hold:
     check_keys(entry, HOLD_KEYS, where, required=("robot", "link"))
     robot = entry["robot"]
-    if robot not in robots:
+    if not isinstance(robot, str) or robot not in robots:
         raise SceneError(f"{where}.robot: no robot {robot!r} in the scene; robots: {', '.join(robots) or '(none)'}")
     model = robots[robot]
-    touch = entry.get("touch_links") or []
+    touch = [] if entry.get("touch_links") is None else entry["touch_links"]
     if not isinstance(touch, list):
         raise SceneError(f"{where}.touch_links: expected a list of link names, got {touch!r}")
     for key, link in [("link", entry["link"])] + [(f"touch_links[{i}]", name) for i, name in enumerate(touch)]:

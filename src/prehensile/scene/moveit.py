@@ -15,8 +15,10 @@ MoveIt conventions and how they are mapped:
   rejected with a :class:`~prehensile.errors.SceneError`.
 - ``robot_state.attached_collision_objects`` (read for a robot) become objects held by their
   ``link_name`` (:class:`~prehensile.scene.scene.Hold`, with the ``touch_links``); an empty
-  ``header.frame_id`` of such an object is its link's frame. Without a robot they are skipped
-  with a warning.
+  ``header.frame_id`` of such an object is its link's frame. Their pose in the link frame is
+  taken at the state's joint values as given, before any is clipped into its limits (as MoveIt
+  attaches them). Without a robot they are skipped with a warning. A request's ``start_state``
+  with attached objects is refused.
 - Primitive dimensions follow ``shape_msgs/SolidPrimitive``: box ``[x, y, z]`` (full sides),
   sphere ``[radius]``, cylinder ``[height, radius]`` (note the order: height first), cone
   ``[height, radius]``. A cone becomes a **conservative cylinder** of the same height and base
@@ -47,11 +49,12 @@ import numpy as np
 import yaml
 
 from prehensile.errors import SceneError, missing_file
+from prehensile.kinematics.forward import forward_kinematics
 from prehensile.model.geometry import Box, Cylinder, Geometry, Mesh, Sphere
 from prehensile.model.robot_model import RobotModel
 from prehensile.scene.scene import Body, Hold, PlacedRobot, Scene
 from prehensile.scene.schema import YamlLoader
-from prehensile.spatial import make_pose, quaternion_to_matrix
+from prehensile.spatial import invert, make_pose, quaternion_to_matrix
 
 log = logging.getLogger(__name__)
 
@@ -188,10 +191,12 @@ def moveit_scene_from_dict(data: Any, source: str, robot: RobotModel | None = No
     robots: tuple[PlacedRobot, ...] = ()
     held: tuple[Body, ...] = ()
     if robot is not None:
-        robots = (_placed_robot(state, robot, f"{source}: robot_state"),)
-        for link, T_world_link in zip(robot.link_names, robots[0].link_poses()):
+        placed, q_given = _placed_robot(state, robot, f"{source}: robot_state")
+        robots = (placed,)
+        given = forward_kinematics(robot, q_given, placed.T_world_base)  # as the state places the links
+        for link, T_world_link in zip(robot.link_names, given):
             frames.setdefault(link, T_world_link)
-        held = _attached_objects(state, robots[0], frames, f"{source}: robot_state")
+        held = _attached_objects(state, placed, given, frames, f"{source}: robot_state")
     elif state.get("attached_collision_objects"):
         log.warning("%s: robot_state.attached_collision_objects skipped: read the scene for a robot model to "
                     "attach them", source)
@@ -201,27 +206,47 @@ def moveit_scene_from_dict(data: Any, source: str, robot: RobotModel | None = No
         _collision_object(obj, frames, f"{source}: world.collision_objects[{i}]{_label(obj)}")
         for i, obj in enumerate(objects)
     )
+    names, world = [body.name for body in held], {body.name for body in bodies}
+    for i, name in enumerate(names):
+        if name in names[:i] or name in world:
+            raise SceneError(f"{source}: robot_state.attached_collision_objects[{i}] '{name}': the object id is "
+                             "used twice; ids must be unique among the attached and the world's objects")
     return Scene(robots=robots, obstacles=bodies, objects=held, source=source)
 
 
-def _attached_objects(state: Mapping, robot: PlacedRobot, frames: Mapping[str, np.ndarray],
+def _attached_objects(state: Mapping, robot: PlacedRobot, given: np.ndarray, frames: Mapping[str, np.ndarray],
                       where: str) -> tuple[Body, ...]:
-    """The ``attached_collision_objects`` of a robot state: bodies held by their links, placed
-    where ``robot`` (at the state) holds them."""
+    """The ``attached_collision_objects`` of a robot state: bodies held by their links, in the
+    link frames where the state's links (``given`` (L, 4, 4), before joint values were clipped
+    into the limits) hold them, placed where ``robot``'s links are."""
     model, out = robot.model, []
-    for i, entry in enumerate(state.get("attached_collision_objects") or []):
+    entries = state.get("attached_collision_objects") or []
+    if not isinstance(entries, list):
+        raise SceneError(f"{where}.attached_collision_objects: expected a list, got {type(entries).__name__}")
+    poses = robot.link_poses()
+    for i, entry in enumerate(entries):
         at = f"{where}.attached_collision_objects[{i}]"
         entry = _mapping(entry, at)
-        link, touch = str(entry.get("link_name", "")), [str(name) for name in entry.get("touch_links") or []]
-        for key, name in [("link_name", link)] + [(f"touch_links[{k}]", name) for k, name in enumerate(touch)]:
+        touch = entry.get("touch_links") or []
+        if not isinstance(touch, list):
+            raise SceneError(f"{at}.touch_links: expected a list of link names, got {touch!r}")
+        if not entry.get("link_name"):
+            raise SceneError(f"{at}: missing 'link_name' (the link that holds the object)")
+        link = str(entry["link_name"])
+        for key, name in [("link_name", link)] + [(f"touch_links[{k}]", str(name)) for k, name in enumerate(touch)]:
             if name not in model.link_names:
                 raise SceneError(f"{at}.{key}: robot '{model.name}' has no link '{name}'; links: "
                                  f"{', '.join(model.link_names)}")
         obj = _mapping(entry.get("object") or {}, f"{at}.object")
+        if not obj.get("id"):
+            raise SceneError(f"{at}.object: missing 'id' (the object's name)")
         header = _mapping(obj.get("header") or {}, f"{at}.object.header")
         obj = {**obj, "header": {**header, "frame_id": header.get("frame_id") or link}}
         body = _collision_object(obj, frames, f"{at}.object{_label(obj)}")
-        out.append(dataclasses.replace(body, held_by=Hold(robot.name, link, tuple(touch))))
+        k = model.link_index(link)
+        T_world_body = poses[k] @ invert(given[k]) @ body.T_world_body
+        out.append(dataclasses.replace(body, T_world_body=T_world_body,
+                                       held_by=Hold(robot.name, link, tuple(str(name) for name in touch))))
     return tuple(out)
 
 
@@ -230,6 +255,9 @@ def motion_plan_request_from_dict(data: Any, source: str) -> MotionPlanRequest:
     data = _mapping(data, source)
     start_state = _mapping(data.get("start_state") or {}, f"{source}: start_state")
     start = _joint_state(start_state.get("joint_state") or {}, f"{source}: start_state.joint_state")
+    if start_state.get("attached_collision_objects"):
+        raise SceneError(f"{source}: start_state.attached_collision_objects: not supported in a request; attach the "
+                         "objects in the scene's robot_state")
     goal: dict[str, float] = {}
     constraints = data.get("goal_constraints") or []
     if constraints:
@@ -327,7 +355,9 @@ def _mesh(shape: Any, where: str) -> Mesh:
     return Mesh.from_arrays(vertices, faces)
 
 
-def _placed_robot(state: Any, model: RobotModel, where: str) -> PlacedRobot:
+def _placed_robot(state: Any, model: RobotModel, where: str) -> tuple[PlacedRobot, np.ndarray]:
+    """(the robot placed by the state, its joint values clipped into the limits; the joint
+    values (dof,) as the state gives them)."""
     state = _mapping(state, where)
     values = _joint_state(state.get("joint_state") or {}, f"{where}.joint_state")
     q = model.neutral_configuration()
@@ -338,13 +368,12 @@ def _placed_robot(state: Any, model: RobotModel, where: str) -> PlacedRobot:
     if len(outside):  # MBM's scenes hold panda_joint4 = 0, outside [-3.07, -0.07]
         log.warning("%s: %s outside the joint limits, clipped into them", where,
                     ", ".join(f"{model.joint_names[i]} = {q[i]:.6g}" for i in outside))
-        q = np.clip(q, model.lower, model.upper)
     T_world_base = np.eye(4)
     multi = _mapping(state.get("multi_dof_joint_state") or {}, f"{where}.multi_dof_joint_state")
     transforms = multi.get("transforms") or []
     if transforms:
         T_world_base = _transform(transforms[0], f"{where}.multi_dof_joint_state.transforms[0]")
-    return PlacedRobot(model.name, model, T_world_base, q, model.source)
+    return PlacedRobot(model.name, model, T_world_base, np.clip(q, model.lower, model.upper), model.source), q
 
 
 def _configuration(model: RobotModel, values: Mapping[str, float], base, where: str, strict: bool) -> np.ndarray:

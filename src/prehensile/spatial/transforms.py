@@ -32,11 +32,15 @@ def rpy_to_matrix(rpy: np.ndarray) -> np.ndarray:
 
 
 def matrix_to_rpy(R: np.ndarray) -> np.ndarray:
-    """Roll, pitch, yaw (rad) of rotation matrices, shape (..., 3, 3) -> (..., 3)."""
+    """Roll, pitch, yaw (rad) of rotation matrices, shape (..., 3, 3) -> (..., 3), such that
+    :func:`rpy_to_matrix` gives R back to rounding everywhere, also at and near pitch +-pi/2
+    (gimbal lock, where only roll - yaw or roll + yaw is defined): roll and pitch come from the
+    last row, yaw from what is left of R once they are undone."""
     R = np.asarray(R, dtype=float)
-    pitch = np.arctan2(-R[..., 2, 0], np.hypot(R[..., 0, 0], R[..., 1, 0]))
     roll = np.arctan2(R[..., 2, 1], R[..., 2, 2])
-    yaw = np.arctan2(R[..., 1, 0], R[..., 0, 0])
+    pitch = np.arctan2(-R[..., 2, 0], np.hypot(R[..., 2, 1], R[..., 2, 2]))
+    Rz = R @ np.swapaxes(rpy_to_matrix(np.stack([roll, pitch, np.zeros_like(roll)], axis=-1)), -1, -2)
+    yaw = np.arctan2(Rz[..., 1, 0], Rz[..., 0, 0])
     return np.stack([roll, pitch, yaw], axis=-1)
 
 
