@@ -196,17 +196,23 @@ def test_an_invalid_input_path_names_the_links_that_collide():
 
 def test_a_path_starting_wholly_inside_a_closed_mesh_fails():
     """A pebble inside a link's closed box mesh never meets its surface while the link turns
-    about it: only the containment test at the path's start shows the collision."""
+    about it, nor does a pebble link inside a closed mesh obstacle: only the containment test
+    at the path's start shows the collision."""
     box = trimesh.creation.box(extents=(0.4, 0.4, 0.4))
-    links = [LinkSpec("base"), LinkSpec("cage", collisions=[Geometry(Mesh.from_arrays(box.vertices, box.faces))])]
-    model = build_model("cage", "test", links,
-                        [JointSpec("j1", "revolute", "base", "cage", np.eye(4), [0, 0, 1.0], -3.0, 3.0)])
+    joint = [JointSpec("j1", "revolute", "base", "cage", np.eye(4), [0, 0, 1.0], -3.0, 3.0)]
+    cage = build_model("cage", "test", [LinkSpec("base"), LinkSpec("cage", collisions=[Geometry(
+        Mesh.from_arrays(box.vertices, box.faces))])], joint)
+    pebble_arm = build_model("cage", "test", [LinkSpec("base"), LinkSpec("cage", collisions=[Geometry(
+        Sphere(0.01), make_pose(position=[0.1, 0.0, 0.0]))])], joint)
     path = np.array([[-1.0], [1.0]])
-    for position, inside in (([0.0, 0.0, 0.0], True), ([0.15, 0.05, 0.0], True), ([0.5, 0.0, 0.0], False)):
-        pebble = Obstacle("pebble", Sphere(0.01), make_pose(position=position))
-        ctx = PlanningContext(model, [pebble], spheres=generate_sphere_model(model, cache=False))
+    cases = [(cage, Obstacle("pebble", Sphere(0.01), make_pose(position=position)), inside)
+             for position, inside in (([0.0, 0.0, 0.0], True), ([0.15, 0.05, 0.0], True), ([0.5, 0.0, 0.0], False))]
+    cases += [(pebble_arm, Obstacle("box", Mesh.from_arrays(box.vertices, box.faces), make_pose(position=at)), inside)
+              for at, inside in (([0.0, 0.0, 0.0], True), ([0.0, 0.0, 0.5], False))]
+    for model, obstacle, inside in cases:
+        ctx = PlanningContext(model, [obstacle], spheres=generate_sphere_model(model, cache=False))
         report = certify_path(ctx, path)
-        assert report.ok == (not inside) == bool(ctx.exact.is_free(path[0])), position
+        assert report.ok == (not inside) == bool(ctx.exact.is_free(path[0])), (model.name, obstacle)
         if inside:
             assert report.first_bad_segment == 0 and report.colliding_links == ("cage",)
-            assert ctx.exact.is_free(ctx.space.interpolate(path[0], path[1], 0.01)).sum() == 0
+            assert not ctx.exact.is_free(ctx.space.interpolate(path[0], path[1], 0.01)).any()

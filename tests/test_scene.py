@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import shutil
 from pathlib import Path
@@ -11,8 +12,8 @@ import pytest
 import yaml
 
 from prehensile.errors import SceneError
-from prehensile.model.geometry import Box, Capsule, Cylinder, Mesh, Sphere
-from prehensile.scene import Hold, PlacedRobot, Scene, bundled_scene_path, check_scene, load_scene, save_scene
+from prehensile.model.geometry import Box, Capsule, Cylinder, Geometry, Mesh, Sphere
+from prehensile.scene import Body, Hold, PlacedRobot, Scene, bundled_scene_path, check_scene, load_scene, save_scene
 from prehensile.spatial import quaternion_to_matrix, rpy_to_matrix
 
 DATA = Path(__file__).parent / "data" / "scenes"
@@ -250,7 +251,22 @@ def test_a_held_object_round_trips_and_moves_with_its_link(tmp_path):
     again = load_scene(tmp_path / "copy.yaml")
     assert again.objects[0].held_by == scene.objects[0].held_by
     np.testing.assert_allclose(again.attached_objects("arm")[0].T_link_object, ball.T_link_object, atol=1e-12)
-    assert "touch_links" not in yaml.safe_load((tmp_path / "copy.yaml").read_text())["objects"][1]
+    bare = load_scene(_write(tmp_path, _held_ball(tip.tolist())))  # no touch links: none written
+    save_scene(bare, tmp_path / "bare.yaml")
+    assert yaml.safe_load((tmp_path / "bare.yaml").read_text())["objects"][0]["held_by"] == {"robot": "arm",
+                                                                                            "link": "tool"}
+
+
+def test_a_scene_refuses_holds_it_cannot_keep():
+    ball = Body("ball", (Geometry(Sphere(0.04)),), held_by=Hold("arm", "tool"))
+    arm = load_scene(DATA / "free.yaml").robots[0]
+    with pytest.raises(SceneError, match="obstacle 'ball' is held by 'arm'; only objects can be held"):
+        Scene(robots=(arm,), obstacles=(ball,))
+    with pytest.raises(SceneError, match=r"object 'ball'.held_by.robot: no robot 'arm' in the scene; robots: \(none\)"):
+        Scene(objects=(ball,))
+    with pytest.raises(SceneError, match=r"object 'ball'.held_by.link: robot 'arm' has no link 'hand'"):
+        Scene(robots=(arm,), objects=(dataclasses.replace(ball, held_by=Hold("arm", "hand")),))
+    assert Scene(robots=(arm,), objects=(ball,)).attached_objects("arm")[0].link == "tool"
 
 
 def test_check_treats_a_held_object_as_part_of_its_robot(tmp_path):

@@ -33,6 +33,7 @@ import typer
 
 from prehensile.cli.app import (BALL_RADIUS_OPTION, app, check_ball_radius, check_budget, check_seed, console,
                                 extra_values, handles_errors)
+from prehensile.collision.attached import AttachedObject
 from prehensile.errors import PrehensileError, SceneError, UnknownFrameError, missing_file
 from prehensile.scene.scene import Body, PlacedRobot, Scene
 
@@ -130,8 +131,9 @@ def plan_report(result, ctx, scene: Path, robot: PlacedRobot, q_goal: np.ndarray
                 planner: str, seed: int) -> dict:
     """The JSON of ``path.json``: start, goal (the configuration reached on success: for a
     target pose, or a continuous joint a whole turn from the one asked, else the one asked)
-    and waypoints in the planned joints, the target pose, the other joints' values, status and
-    statistics; for an invalid start or goal, why (``reason``, :func:`_end_reason`)."""
+    and waypoints in the planned joints, the target pose, the other joints' values, the held
+    objects (link, ``T_link_object``), status and statistics; for an invalid start or goal, why
+    (``reason``, :func:`_end_reason`)."""
     space = ctx.space
     fixed = [j for j in robot.model.joint_names if j not in space.joint_names]
     if result.success:
@@ -170,13 +172,13 @@ def _end_reason(result, ctx, q_start: np.ndarray, q_goal: np.ndarray | None) -> 
     return reason
 
 
-def picture_scene(scene: Scene, robot: PlacedRobot, configurations: np.ndarray) -> Scene:
+def picture_scene(scene: Scene, robot: PlacedRobot, configurations: np.ndarray,
+                  attached: tuple[AttachedObject, ...] = ()) -> Scene:
     """``scene`` with ``robot`` replaced by copies at each configuration (N, dof), each with
-    a copy of the objects it holds."""
+    a copy of the ``attached`` objects (held by ``robot``, in place of the scene's bodies)."""
     labels = ["start"] + [f"waypoint {k}" for k in range(1, len(configurations) - 1)] + ["goal"]
     copies = tuple(dataclasses.replace(robot, name=f"{robot.name} ({label})", q=q)
                    for label, q in zip(labels, configurations))
-    attached = scene.attached_objects(robot.name)
     carried = tuple(Body(f"{obj.name} ({copy.name})", obj.geometries(),
                          copy.link_poses()[robot.model.link_index(obj.link)] @ obj.T_link_object)
                     for copy in copies for obj in attached)
@@ -219,7 +221,7 @@ def write_outputs(result, context, scene: Scene, robot: PlacedRobot, report: dic
         known = [report["start"]] + ([] if report["goal"] is None else [report["goal"]])
         shown = context.space.full(np.array(known))
         title = f"{robot.name}: no path ({result.status.value}); start{' and goal' if len(known) == 2 else ''} shown"
-    files[out / "plan.png"] = scene_image(picture_scene(scene, robot, shown), title=title)
+    files[out / "plan.png"] = scene_image(picture_scene(scene, robot, shown, context.attached), title=title)
     written = atomic_write_files(files)
     if not result.success:
         (out / "trajectory.json").unlink(missing_ok=True)  # never leave an earlier plan's trajectory

@@ -48,7 +48,7 @@ class AttachedObject:
         if isinstance(self.touch_links, str):  # one link, not its letters
             object.__setattr__(self, "touch_links", (self.touch_links,))
         check_one_pose(self.T_link_object, f"{where}: T_link_object")
-        parts = self.shape if isinstance(self.shape, (list, tuple)) else (self.shape,)
+        parts = self._parts()
         if not parts:
             raise PrehensileError(f"{where}: no shape given")
         for part in parts:
@@ -58,10 +58,13 @@ class AttachedObject:
             if isinstance(part, Geometry):
                 check_one_pose(part.T_link_geom, f"{where}: T_link_geom of {part.name or 'a geometry'}")
 
+    def _parts(self) -> tuple:
+        """``shape`` as a tuple of shapes and geometries."""
+        return tuple(self.shape) if isinstance(self.shape, (list, tuple)) else (self.shape,)
+
     def geometries(self) -> tuple[Geometry, ...]:
         """The object's geometries in the object frame."""
-        parts = self.shape if isinstance(self.shape, (list, tuple)) else (self.shape,)
-        return tuple(part if isinstance(part, Geometry) else Geometry(part, name=self.name) for part in parts)
+        return tuple(part if isinstance(part, Geometry) else Geometry(part, name=self.name) for part in self._parts())
 
 
 def attach_objects(model: RobotModel, spheres: SphereModel | None, acm: np.ndarray,
@@ -80,12 +83,7 @@ def attach_objects(model: RobotModel, spheres: SphereModel | None, acm: np.ndarr
         raise PrehensileError(f"attached objects need unique names, got {[obj.name for obj in attached]}")
     n, k = model.n_links, len(attached)
     parents = [model.link_index(obj.link) for obj in attached]
-    origins = []
-    for obj in attached:
-        T = np.asarray(obj.T_link_object, dtype=float)
-        if T.shape != (4, 4) or not np.all(np.isfinite(T)):
-            raise PrehensileError(f"attached object '{obj.name}': T_link_object must be a finite (4, 4) pose")
-        origins.append(T)
+    origins = [np.asarray(obj.T_link_object, dtype=float) for obj in attached]  # checked by AttachedObject
     geometries = tuple(obj.geometries() for obj in attached)
     augmented = dataclasses.replace(
         model, link_names=model.link_names + tuple(names), link_joint_names=model.link_joint_names + tuple(names),

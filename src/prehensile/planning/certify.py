@@ -145,6 +145,7 @@ class ExactCertifier:
         self._ball_radius = np.array([p.radius for p in self._parts])
         self._part_link = np.array([p.link for p in self._parts], dtype=np.int64)
         self._boxes = np.array(boxes).reshape(-1, 6)
+        self._nesting = _Nesting(self._parts, parts, self._boxes, table)
         centers, radii = _link_balls(model)
         self._weights = motion_weights(model, centers, radii, np.array(links, dtype=np.int64).reshape(-1, 2))
         # resolution metric: how far any part can move per unit of each variable
@@ -174,18 +175,6 @@ class ExactCertifier:
         if coal.collide(exact_a, Ta, exact_b, Tb, self._collision_request, coal.CollisionResult()) > 0:
             return -1.0, 2
         return max(coal.distance(exact_a, Ta, exact_b, Tb, self._request, coal.DistanceResult()) - _TOLERANCE, 0.0), 3
-
-    def _nested(self, p: int, poses: np.ndarray) -> bool:
-        """Whether one geometry of pair p lies wholly inside the other, a closed mesh, with the
-        links at ``poses`` (L, 4, 4) (asked where the surfaces do not meet)."""
-        a, o, b = self._pairs[p]
-        sides = [(part.closed, poses[part.link] @ part.T_link_geom, part.anchor)
-                 for part in [self._parts[a]] + ([] if o >= 0 else [self._parts[b]])]
-        if o >= 0:
-            obstacle = self._obstacles[o]
-            sides.append((obstacle.closed, obstacle.T_world_shape, obstacle.anchor))
-        (closed_a, T_a, anchor_a), (closed_b, T_b, anchor_b) = sides
-        return contains(closed_a, T_a, anchor_b, T_b) or contains(closed_b, T_b, anchor_a, T_a)
 
     def _links_of(self, p: int) -> tuple[str, ...]:
         """Names of the robot links in pair p."""
@@ -221,7 +210,12 @@ class ExactCertifier:
                 np.empty(count, dtype=np.int64), np.empty(count), np.empty(count), np.empty(self.model.dof))
         safe, early, position, poses, stats = walk[4], walk[5], walk[7], walk[8], walk[-5]
         due, here, bound = walk[-4], walk[-3], walk[-2]
-        queries, first = 0, True
+        fk_into(path[0], self.T_world_base, self.model.joint_table, poses)
+        nested = self._nesting.first_pair(poses)
+        if nested >= 0:
+            return CertifyReport(False, 0, min_distance=0.0, time_s=clock() - start,
+                                 colliding_links=self._links_of(nested))
+        queries = 0
         while True:
             m = _next_due(*walk)
             if m < 0:
@@ -233,8 +227,6 @@ class ExactCertifier:
             for k in near:
                 d[k], used_queries = self._lower_bound(int(due[k]), placed)
                 queries += used_queries
-                if first and d[k] >= 0.0 and used_queries == 3 and self._nested(int(due[k]), poses):
-                    d[k] = -1.0  # wholly inside a closed mesh at the start: no surface crossing would show it
                 if d[k] < 0.0:
                     i, t = int(position[0]), position[1]
                     bad = i - 1 if (t == 0.0 and i > 0) else i
@@ -242,7 +234,50 @@ class ExactCertifier:
                                          self._links_of(int(due[k])))
             stats[1] = min(stats[1], float(d.min()))
             safe[due[:m]], early[due[:m]] = here[:m] + d, 0.5 * d + 1e-12  # (rounding: reached exactly is due)
-            first = False
+
+
+class _Nesting:
+    """Which pair of a certifier (robot parts against obstacles or each other) has a geometry
+    with a point inside the other's closed mesh: they overlap, and if no surfaces meet (one
+    wholly inside the other) no distance along the path shows it. Tested at a path's start;
+    from there on, getting inside means crossing a surface.
+
+    Args:
+        parts: the robot's parts; obstacles: the obstacles' parts; boxes: (O, 6) their world
+            AABBs (min xyz, max xyz); pairs: (K, 3) per pair (part, obstacle or -1, part or -1).
+    """
+
+    def __init__(self, parts, obstacles, boxes: np.ndarray, pairs: np.ndarray) -> None:
+        n = len(parts)  # geometries: the parts, then the obstacles
+        self._closed = [p.closed for p in parts] + [o.closed for o in obstacles]
+        self._anchor = np.array([p.anchor for p in parts] + [o.anchor for o in obstacles]).reshape(-1, 3)
+        self._part_link = np.array([p.link for p in parts], dtype=np.int64)
+        self._part_geom = np.array([p.T_link_geom for p in parts]).reshape(-1, 4, 4)
+        self._part_center = np.array([p.center for p in parts]).reshape(-1, 3)
+        self._obstacle_pose = np.array([o.T_world_shape for o in obstacles]).reshape(-1, 4, 4)
+        self._obstacle_center = 0.5 * (boxes[:, :3] + boxes[:, 3:])
+        self._radius = np.concatenate([[p.radius for p in parts], 0.5 * np.linalg.norm(boxes[:, 3:] - boxes[:, :3],
+                                                                                       axis=1)])
+        tests = []  # (outer geometry, closed; inner geometry; pair)
+        for k, (a, o, b) in enumerate(pairs):
+            other = n + o if o >= 0 else b
+            tests += [(outer, inner, k) for outer, inner in ((a, other), (other, a)) if self._closed[outer] is not None]
+        self._outer, self._inner, self._pair = np.array(tests, dtype=np.int64).reshape(-1, 3).T
+
+    def first_pair(self, poses: np.ndarray) -> int:
+        """The first pair nested with the links at ``poses`` (L, 4, 4), or -1."""
+        if not len(self._pair):
+            return -1
+        link = poses[self._part_link]
+        T = np.concatenate([link @ self._part_geom, self._obstacle_pose])  # (G, 4, 4) geometry poses
+        center = np.concatenate([np.einsum("gij,gj->gi", link[:, :3, :3], self._part_center) + link[:, :3, 3],
+                                 self._obstacle_center])
+        anchor = np.einsum("gij,gj->gi", T[:, :3, :3], self._anchor) + T[:, :3, 3]
+        near = np.linalg.norm(anchor[self._inner] - center[self._outer], axis=1) <= self._radius[self._outer]
+        for outer, inner, pair in zip(self._outer[near], self._inner[near], self._pair[near]):
+            if contains(self._closed[outer], T[outer], self._anchor[inner], T[inner]):
+                return int(pair)
+        return -1
 
 
 @njit(cache=True, _nrt=False)

@@ -44,7 +44,7 @@ import yaml
 
 from prehensile.errors import PrehensileError, SceneError, missing_file
 from prehensile.model.robot_model import RobotModel
-from prehensile.scene.scene import Body, Hold, PlacedRobot, Scene
+from prehensile.scene.scene import Body, Hold, PlacedRobot, Scene, check_hold
 from prehensile.storage import atomic_write_text
 from prehensile.scene.schema import (
     YamlLoader, check_keys, number, read_pose, read_shape, relative_path, write_pose, write_shape,
@@ -256,11 +256,9 @@ def _read_hold(entry: Any, robots: Mapping[str, RobotModel], where: str) -> Hold
     touch = [] if entry.get("touch_links") is None else entry["touch_links"]
     if not isinstance(touch, list):
         raise SceneError(f"{where}.touch_links: expected a list of link names, got {touch!r}")
-    for key, link in [("link", entry["link"])] + [(f"touch_links[{i}]", name) for i, name in enumerate(touch)]:
-        if link not in model.link_names:
-            raise SceneError(f"{where}.{key}: robot '{robot}' ({model.name}) has no link {link!r}; links: "
-                             f"{', '.join(model.link_names)}")
-    return Hold(robot, entry["link"], tuple(touch))
+    hold = Hold(robot, entry["link"], tuple(touch))
+    check_hold(model, hold, where)
+    return hold
 
 
 def _write_robot(robot: PlacedRobot, base_dir: Path) -> dict:

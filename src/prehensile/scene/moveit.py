@@ -52,7 +52,7 @@ from prehensile.errors import SceneError, missing_file
 from prehensile.kinematics.forward import forward_kinematics
 from prehensile.model.geometry import Box, Cylinder, Geometry, Mesh, Sphere
 from prehensile.model.robot_model import RobotModel
-from prehensile.scene.scene import Body, Hold, PlacedRobot, Scene
+from prehensile.scene.scene import Body, Hold, PlacedRobot, Scene, check_hold
 from prehensile.scene.schema import YamlLoader
 from prehensile.spatial import invert, make_pose, quaternion_to_matrix
 
@@ -206,9 +206,9 @@ def moveit_scene_from_dict(data: Any, source: str, robot: RobotModel | None = No
         _collision_object(obj, frames, f"{source}: world.collision_objects[{i}]{_label(obj)}")
         for i, obj in enumerate(objects)
     )
-    names, world = [body.name for body in held], {body.name for body in bodies}
+    names, world_ids = [body.name for body in held], {body.name for body in bodies}
     for i, name in enumerate(names):
-        if name in names[:i] or name in world:
+        if name in names[:i] or name in world_ids:
             raise SceneError(f"{source}: robot_state.attached_collision_objects[{i}] '{name}': the object id is "
                              "used twice; ids must be unique among the attached and the world's objects")
     return Scene(robots=robots, obstacles=bodies, objects=held, source=source)
@@ -233,10 +233,8 @@ def _attached_objects(state: Mapping, robot: PlacedRobot, given: np.ndarray, fra
         if not entry.get("link_name"):
             raise SceneError(f"{at}: missing 'link_name' (the link that holds the object)")
         link = str(entry["link_name"])
-        for key, name in [("link_name", link)] + [(f"touch_links[{k}]", str(name)) for k, name in enumerate(touch)]:
-            if name not in model.link_names:
-                raise SceneError(f"{at}.{key}: robot '{model.name}' has no link '{name}'; links: "
-                                 f"{', '.join(model.link_names)}")
+        hold = Hold(robot.name, link, tuple(str(name) for name in touch))
+        check_hold(model, hold, at, link_key="link_name")
         obj = _mapping(entry.get("object") or {}, f"{at}.object")
         if not obj.get("id"):
             raise SceneError(f"{at}.object: missing 'id' (the object's name)")
@@ -245,8 +243,7 @@ def _attached_objects(state: Mapping, robot: PlacedRobot, given: np.ndarray, fra
         body = _collision_object(obj, frames, f"{at}.object{_label(obj)}")
         k = model.link_index(link)
         T_world_body = poses[k] @ invert(given[k]) @ body.T_world_body
-        out.append(dataclasses.replace(body, T_world_body=T_world_body,
-                                       held_by=Hold(robot.name, link, tuple(str(name) for name in touch))))
+        out.append(dataclasses.replace(body, T_world_body=T_world_body, held_by=hold))
     return tuple(out)
 
 

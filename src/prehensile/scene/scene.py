@@ -14,6 +14,7 @@ import numpy as np
 
 from prehensile.collision.attached import AttachedObject
 from prehensile.collision.world import Obstacle
+from prehensile.errors import SceneError
 from prehensile.kinematics.forward import forward_kinematics
 from prehensile.model.geometry import Geometry
 from prehensile.model.robot_model import RobotModel
@@ -28,6 +29,15 @@ class Hold:
     robot: str
     link: str
     touch_links: tuple[str, ...] = ()
+
+
+def check_hold(model: RobotModel, hold: Hold, where: str, link_key: str = "link") -> None:
+    """Raise SceneError naming ``where`` (and ``link_key``, what the input calls the holding
+    link) unless the holding link and the touch links of ``hold`` are links of ``model``."""
+    for key, name in [(link_key, hold.link)] + [(f"touch_links[{k}]", n) for k, n in enumerate(hold.touch_links)]:
+        if name not in model.link_names:
+            raise SceneError(f"{where}.{key}: robot '{hold.robot}' has no link {name!r}; links: "
+                             f"{', '.join(model.link_names)}")
 
 
 @dataclass(frozen=True, eq=False)
@@ -91,9 +101,24 @@ class Scene:
     objects: tuple[Body, ...] = ()
     source: str = ""
 
+    def __post_init__(self) -> None:
+        """Raise SceneError unless every held body is an object held by a link of a robot of the scene."""
+        models = {robot.name: robot.model for robot in self.robots}
+        for body in self.obstacles:
+            if body.held_by is not None:
+                raise SceneError(f"{self.source}: obstacle '{body.name}' is held by '{body.held_by.robot}'; only "
+                                 "objects can be held")
+        for body in self.objects:
+            if body.held_by is not None:
+                where = f"{self.source}: object '{body.name}'.held_by"
+                if body.held_by.robot not in models:
+                    raise SceneError(f"{where}.robot: no robot {body.held_by.robot!r} in the scene; robots: "
+                                     f"{', '.join(models) or '(none)'}")
+                check_hold(models[body.held_by.robot], body.held_by, where)
+
     @property
     def bodies(self) -> tuple[Body, ...]:
-        """Obstacles and objects: everything a robot may collide with."""
+        """Obstacles and objects: everything a robot may collide with, but for what it holds."""
         return self.obstacles + self.objects
 
     def robot(self, name: str) -> PlacedRobot:
