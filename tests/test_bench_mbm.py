@@ -250,8 +250,8 @@ def test_a_timeout_names_the_end_only_the_balls_reject(tmp_path):
 
     _write_armar_problems(tmp_path / "shelf")
     model = robots.load("armar3")
-    prepared = PreparedProblem(model, (generate_sphere_model(model), None), load_problems(tmp_path, model, 1)[0],
-                               MBMSettings())
+    coarse = generate_sphere_model(model, max_overshoot=np.inf)  # 8 balls per box: the torso's bulge 0.1 m
+    prepared = PreparedProblem(model, (coarse, None), load_problems(tmp_path, model, 1)[0], MBMSettings())
     prepared.q_start = model.neutral_configuration()  # the hip's balls meet the arms' (exactly free)
     record = _record(prepared, PlanResult(PlanStatus.TIMEOUT, np.zeros((0, model.dof)), PlanStats()), 1.0,
                      MBMSettings())

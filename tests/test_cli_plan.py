@@ -182,17 +182,30 @@ def test_a_target_out_of_reach_says_why(tmp_path):
 
 
 def test_an_end_only_coarse_balls_reject_is_explained_and_finer_balls_plan(tmp_path):
-    """ARMAR-III's default balls on its torso box overlap the arm at the demo's start."""
+    """Coarse balls on ARMAR-III's torso box (8 per box, bulging 0.1 m out of it) overlap the
+    arm at the demo's start: without an escape the start is invalid, and the reason says that
+    finer balls may help. The default balls (at most 2 cm out of a box) plan from there."""
+    from prehensile.cli.plan_cmd import _end_reason
+    from prehensile.collision.spheres import generate_sphere_model
+    from prehensile.planning import RRTConnectSettings, rrt_connect
+
     args = ["demo", "--robot", "armar3", "--chain", "LeftArm", "--goal", "0.3", "0.2", "0", "0.5", "0", "0", "0",
             "--out", tmp_path]
     result = _plan(*args, "--budget", "0.3")
-    assert result.exit_code == 1, result.output
-    reason = json.loads((tmp_path / "path.json").read_text())["reason"]
-    assert reason.startswith("start: free on the exact geometry, but the sphere model's conservative balls collide")
-    assert "--ball-radius" in reason
-    result = _plan(*args, "--ball-radius", "0.04")
     assert result.exit_code == 0, result.output
     assert json.loads((tmp_path / "path.json").read_text())["status"] == "success"
+    scene = load_scene(bundled_scene_path("demo"))
+    robot = next(r for r in scene.robots if r.name == "armar3")
+    coarse = generate_sphere_model(robot.model, max_overshoot=np.inf)
+    context = PlanningContext(robot.model, scene.collision_obstacles(), joints="LeftArm", q_ref=robot.configuration,
+                              T_world_base=robot.T_world_base, spheres=coarse)
+    goal = robot.configuration.copy()
+    goal[robot.model.chain_q_indices("LeftArm")] = [0.3, 0.2, 0, 0.5, 0, 0, 0]
+    planned = rrt_connect(context, robot.configuration, goal, RRTConnectSettings(time_budget_s=0.3, escape=False))
+    assert planned.status.value == "invalid_start"
+    reason = _end_reason(planned, context, robot.configuration, goal)
+    assert reason.startswith("start: free on the exact geometry, but the sphere model's conservative balls collide")
+    assert "--ball-radius" in reason
 
 
 def test_a_search_that_ran_out_of_time_does_not_blame_its_start(tmp_path):
@@ -200,7 +213,7 @@ def test_a_search_that_ran_out_of_time_does_not_blame_its_start(tmp_path):
     leaves it along a certified escape, then searches for a pose out of reach until the budget
     ends. The start, and finer balls, are not why it timed out."""
     scene = tmp_path / "nao.yaml"
-    scene.write_text("robots:\n  - {robot: nao, joints: {LShoulderPitch: 1.0, LShoulderRoll: 0.3}}\n")
+    scene.write_text("robots:\n  - {robot: nao, joints: {LShoulderPitch: 1.0, LShoulderRoll: 0.1}}\n")
     robot = load_scene(scene).robots[0]
     context = PlanningContext(robot.model, [], joints="left_arm", q_ref=robot.configuration)
     assert "conservative balls collide" in context.why_invalid(robot.configuration)

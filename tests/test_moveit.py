@@ -269,7 +269,8 @@ def test_bad_attached_collision_objects(data, fragment):
 
     with pytest.raises(SceneError) as info:
         moveit_scene_from_dict(data, "bad.yaml", robots.load("panda"))
-    assert str(info.value).startswith("bad.yaml: robot_state.attached_collision_objects") and fragment in str(info.value)
+    message = str(info.value)
+    assert message.startswith("bad.yaml: robot_state.attached_collision_objects") and fragment in message
 
 
 def test_a_request_with_attached_objects_is_refused():

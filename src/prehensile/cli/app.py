@@ -24,8 +24,8 @@ EXIT_FREE, EXIT_COLLIDING, EXIT_BAD_INPUT, EXIT_INTERNAL = 0, 1, 2, 3
 SRDF_OPTION = typer.Option(None, "--srdf", help="SRDF to apply: planning groups (chains), end effectors, disabled "
                            "collision pairs (default: <stem>.srdf next to a URDF or MJCF file, if present).")
 BALL_RADIUS_OPTION = typer.Option(None, "--ball-radius", help="Largest ball (m) of the sphere model generated for "
-                                  "planning (default: 8 balls per link); robots with big primitive links such as "
-                                  "ARMAR-III's torso want 0.04.")
+                                  "planning (default: 8 balls per link mesh, primitives covered to within 2 cm); "
+                                  "smaller balls let links pass closer to each other and to obstacles.")
 
 
 def check_budget(budget: float) -> None:

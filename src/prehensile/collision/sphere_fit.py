@@ -12,6 +12,9 @@ import numpy as np
 
 from prehensile.model.geometry import Box, Capsule, Cylinder, Geometry, Mesh, Sphere, shape_to_trimesh
 
+PRIMITIVE_OVERSHOOT = 0.02  # m: how far a primitive's balls may reach out of it by default (a box of 0.5 m
+# covered by 8 balls bulges 0.1 m: ARMAR-III's torso balls then met its hanging arms)
+
 
 def geometry_triangles(geometry: Geometry, max_edge: float | None = None) -> np.ndarray:
     """Triangles of ``geometry`` in the link frame, shape (T, 3, 3) (m).
@@ -274,22 +277,43 @@ def cover_primitive(geometry: Geometry, budget: int = 8) -> tuple[np.ndarray, np
     return centers @ T[:3, :3].T + T[:3, 3], radii
 
 
+def primitive_overshoot(geometry: Geometry, centers: np.ndarray, radii: np.ndarray) -> float:
+    """How far (m) balls (centres (K, 3) inside the primitive, link frame; radii (K,)) reach out
+    of the primitive solid at most: per ball its radius minus its centre's distance to the
+    surface (the ball of that distance lies inside the convex solid)."""
+    T, shape = np.asarray(geometry.T_link_geom, dtype=float), geometry.shape
+    local = (centers - T[:3, 3]) @ T[:3, :3]
+    if isinstance(shape, Box):
+        depth = np.min(0.5 * np.asarray(shape.size) - np.abs(local), axis=1)
+    elif isinstance(shape, Cylinder):
+        depth = np.minimum(shape.radius - np.hypot(local[:, 0], local[:, 1]), 0.5 * shape.length - np.abs(local[:, 2]))
+    else:  # a sphere, or a capsule: the distance to its axis segment
+        half = 0.5 * shape.length if isinstance(shape, Capsule) else 0.0
+        axis = np.zeros_like(local)
+        axis[:, 2] = np.clip(local[:, 2], -half, half)
+        depth = shape.radius - np.linalg.norm(local - axis, axis=1)
+    return float(np.max(radii - depth))
+
+
 def cover_geometries(
     geometries: tuple[Geometry, ...], n_spheres: int = 8, max_radius: float | None = None,
-    max_edge: float = 0.02, max_spheres: int = 64,
+    max_edge: float = 0.02, max_spheres: int = 64, max_overshoot: float = PRIMITIVE_OVERSHOOT,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Balls covering all ``geometries`` of one link (link frame).
 
     Meshes are merged and covered by :func:`cover_triangles` with ``n_spheres`` balls (more,
     up to ``max_spheres``, while the largest radius exceeds ``max_radius``); primitives get
-    their exact covers with the same budget, grown the same way.
+    their exact covers with the same budget, grown the same way and also while a ball reaches
+    more than ``max_overshoot`` out of the solid (:func:`primitive_overshoot`).
 
     Args:
         geometries: the link's collision geometries.
         n_spheres: balls for the link's meshes (and budget per primitive).
         max_radius: optional largest radius (m) of the balls.
         max_edge: triangles are subdivided to this edge length (m) before clustering.
-        max_spheres: cap on the number of balls for the meshes.
+        max_spheres: cap on the number of balls for the meshes and per primitive.
+        max_overshoot: how far (m) a primitive's balls may reach out of it (a target: the
+            budget stops growing at ``max_spheres``).
 
     Returns:
         centres (K, 3) and radii (K,) in m.
@@ -302,7 +326,9 @@ def cover_geometries(
             budget = n_spheres
             while True:
                 c, r = cover_primitive(geometry, budget)
-                if max_radius is None or r.max() <= max_radius or budget >= max_spheres:
+                tight = (max_radius is None or r.max() <= max_radius) and primitive_overshoot(geometry, c, r) <= \
+                    max_overshoot
+                if tight or budget >= max_spheres:
                     break
                 budget = min(max_spheres, budget + max(1, budget // 4))
             centers.append(c)

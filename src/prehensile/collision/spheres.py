@@ -16,12 +16,12 @@ import numpy as np
 
 from prehensile.collision import sphere_cache
 from prehensile.collision.sphere_fit import (
-    cover_geometries, cover_primitive, cover_triangles, geometry_triangles, pad_to_cover,
+    PRIMITIVE_OVERSHOOT, cover_geometries, cover_primitive, cover_triangles, geometry_triangles, pad_to_cover,
 )
 from prehensile.errors import ModelError
 from prehensile.model.geometry import Mesh, Sphere
 from prehensile.model.robot_model import RobotModel
-from prehensile.settings import FINITE_NON_NEGATIVE, FINITE_POSITIVE, at_least, check_value, or_none
+from prehensile.settings import FINITE_NON_NEGATIVE, FINITE_POSITIVE, POSITIVE, at_least, check_value, or_none
 
 log = logging.getLogger(__name__)
 
@@ -133,15 +133,16 @@ def _check_arguments(who: str, **values: tuple) -> None:
 
 def generate_sphere_model(
     model: RobotModel, n_spheres: int = 8, max_radius: float | None = None, max_edge: float = 0.02,
-    cache: bool = True,
+    max_overshoot: float = PRIMITIVE_OVERSHOOT, cache: bool = True,
 ) -> SphereModel:
     """Balls covering every link's collision geometry (meshes and primitives).
 
     Mesh triangles are subdivided to ``max_edge``, clustered into ``n_spheres`` groups and each
     group is enclosed by a near-minimal ball holding all vertices of its triangles (a ball
     holding a triangle's vertices holds the triangle), so the union covers the surface.
-    Primitives get exact covers of the solid. The result is cached on disk, keyed by a hash of
-    the geometry (mesh file contents included) and the parameters.
+    Primitives get exact covers of the solid, with more balls (up to 64) while a ball reaches
+    more than ``max_overshoot`` out of it. The result is cached on disk, keyed by a hash of the
+    geometry (mesh file contents included) and the parameters.
 
     Args:
         model: the robot; links without collision geometry get no balls.
@@ -151,18 +152,24 @@ def generate_sphere_model(
             ball primitive keeps its radius, and a mesh's clusters stop shrinking at some size
             (the Panda's links at about 0.07 m); the links left above it are logged (INFO).
         max_edge: triangle subdivision length (m).
+        max_overshoot: how far (m) a primitive's balls may reach out of it (a target, like
+            ``max_radius``; infinite: ``n_spheres`` balls per primitive).
         cache: read and write the disk cache.
 
     Raises:
-        ModelError: ``n_spheres`` below 1, or ``max_radius`` / ``max_edge`` not positive.
+        ModelError: ``n_spheres`` below 1, or ``max_radius`` / ``max_edge`` / ``max_overshoot``
+            not positive.
     """
     _check_arguments("generate_sphere_model", n_spheres=(n_spheres, at_least(1)),
-                     max_radius=(max_radius, or_none(FINITE_POSITIVE)), max_edge=(max_edge, FINITE_POSITIVE))
-    params = {"kind": "generate", "n_spheres": int(n_spheres), "max_radius": max_radius, "max_edge": float(max_edge)}
+                     max_radius=(max_radius, or_none(FINITE_POSITIVE)), max_edge=(max_edge, FINITE_POSITIVE),
+                     max_overshoot=(max_overshoot, POSITIVE))
+    params = {"kind": "generate", "n_spheres": int(n_spheres), "max_radius": max_radius, "max_edge": float(max_edge),
+              "max_overshoot": float(max_overshoot)}
 
     def build() -> SphereModel:
-        return _from_lists(model, [cover_geometries(geoms, n_spheres, max_radius, max_edge)
-                                   for geoms in model.collisions], covering=True)
+        return _from_lists(model, [cover_geometries(geoms, n_spheres, max_radius, max_edge,
+                                                    max_overshoot=max_overshoot) for geoms in model.collisions],
+                           covering=True)
 
     spheres = sphere_cache.cached(model, params, build) if cache else build()
     if max_radius is not None:

@@ -153,9 +153,8 @@ class PlanningContext:
         joints: the planned joints: a chain name, joint names, or None for all variables.
         q_ref: (dof,) values of the joints not planned (rad or m); neutral if None.
         T_world_base: (4, 4) pose of the robot root; identity if None.
-        spheres: the robot's sphere model (planning); default generated from its geometry. Robots
-            with large primitive links (ARMAR-III's torso) want ``generate_sphere_model(model,
-            max_radius=0.04)``: the default cover of a big box is coarse.
+        spheres: the robot's sphere model (planning); default generated from its geometry
+            (:func:`~prehensile.collision.spheres.generate_sphere_model`).
         cover: balls covering the geometry (``covering``), for planning again when ``spheres``
             does not cover it (a spherized URDF) and a path fails the exact certification
             (see :meth:`refined`); default ``spheres`` padded to cover it

@@ -12,6 +12,7 @@ from prehensile.scene.moveit import (
 from prehensile.scene.scene import Body, Hold, PlacedRobot, Scene
 
 __all__ = [
-    "Body", "Hold", "MBMProblem", "SceneCheck", "bundled_scene_path", "bundled_scenes", "check_scene", "MotionPlanRequest", "PlacedRobot", "Scene", "iter_mbm_problems",
-    "load_motion_plan_request", "load_moveit_scene", "load_scene", "save_scene",
+    "Body", "Hold", "MBMProblem", "MotionPlanRequest", "PlacedRobot", "Scene", "SceneCheck", "bundled_scene_path",
+    "bundled_scenes", "check_scene", "iter_mbm_problems", "load_motion_plan_request", "load_moveit_scene", "load_scene",
+    "save_scene",
 ]
