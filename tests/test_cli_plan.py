@@ -277,8 +277,14 @@ def test_bad_scene_goal_names_the_file(tmp_path):
     with pytest.raises(SceneError, match=r"bad.yaml: robots\[0\].goal: robot 'panda' has no joint 'elbow'"):
         robot_goals(scene, load_scene(scene))
     scene.write_text("robots:\n  - {robot: panda, goal: {panda_finger_joint2: 0.01}}\n")
-    with pytest.raises(SceneError, match=r"goal: 'panda_finger_joint2' is a mimic joint of robot 'panda': it follows "
-                                         r"'panda_finger_joint1'; give that joint's value"):
+    with pytest.raises(SceneError, match=r"goal: mimic joint 'panda_finger_joint2' = 0.01 disagrees with the joint it "
+                                         r"follows: 1 \* panda_finger_joint1 \+ 0 = 0$"):
+        robot_goals(scene, load_scene(scene))
+    scene.write_text("robots:\n  - {robot: panda, joints: {panda_finger_joint1: 0.01, panda_finger_joint2: 0.01},\n"
+                     "      goal: {panda_joint1: 0.5, panda_finger_joint2: 0.01}}\n")  # agrees: accepted, not planned
+    assert robot_goals(scene, load_scene(scene)) == {"panda": {"panda_joint1": 0.5}}
+    scene.write_text("robots:\n  - {robot: panda, goal: {panda_finger_joint2: 0.0}}\n")
+    with pytest.raises(SceneError, match=r"bad.yaml: robots\[0\].goal: empty; name the planned joints"):
         robot_goals(scene, load_scene(scene))
     scene.write_text("robots:\n  - {robot: panda, goal: {}}\n")
     with pytest.raises(SceneError, match=r"bad.yaml: robots\[0\].goal: empty; name the planned joints"):

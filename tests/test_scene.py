@@ -257,6 +257,21 @@ def test_a_held_object_round_trips_and_moves_with_its_link(tmp_path):
                                                                                             "link": "tool"}
 
 
+def test_a_mimic_joint_value_must_follow_its_leader(tmp_path):
+    """As in MoveIt requests: a mimic joint's value is accepted when its leader's implies it."""
+    pytest.importorskip("prehensile.robots")
+    fingers = {"panda_finger_joint1": 0.03, "panda_finger_joint2": 0.03}
+    scene = load_scene(_write(tmp_path, {"robots": [{"robot": "panda", "joints": fingers}]}))
+    model = scene.robots[0].model
+    assert scene.robots[0].configuration[model.joint_index("panda_finger_joint1")] == 0.03
+    apart = {"robots": [{"robot": "panda", "joints": {**fingers, "panda_finger_joint2": 0.02}}]}
+    with pytest.raises(SceneError, match=r"robots\[0\].joints: mimic joint 'panda_finger_joint2' = 0.02 "
+                                         r"disagrees with the joint it follows: 1 \* panda_finger_joint1 \+ 0 = 0.03"):
+        load_scene(_write(tmp_path, apart))
+    with pytest.raises(SceneError, match=r"joints.panda_finger_joint2: expected a number"):
+        load_scene(_write(tmp_path, {"robots": [{"robot": "panda", "joints": {"panda_finger_joint2": "open"}}]}))
+
+
 def test_a_scene_refuses_holds_it_cannot_keep():
     ball = Body("ball", (Geometry(Sphere(0.04)),), held_by=Hold("arm", "tool"))
     arm = load_scene(DATA / "free.yaml").robots[0]

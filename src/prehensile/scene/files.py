@@ -47,7 +47,7 @@ from prehensile.model.robot_model import RobotModel
 from prehensile.scene.scene import Body, Hold, PlacedRobot, Scene, check_hold
 from prehensile.storage import atomic_write_text
 from prehensile.scene.schema import (
-    YamlLoader, check_keys, number, read_pose, read_shape, relative_path, write_pose, write_shape,
+    YamlLoader, check_keys, check_mimic_values, number, read_pose, read_shape, relative_path, write_pose, write_shape,
 )
 
 FORMAT_VERSION = 1
@@ -118,18 +118,20 @@ def robot_goals(path: str | os.PathLike, scene: Scene) -> dict[str, dict[str, fl
 
     Raises:
         SceneError: a goal that is not a mapping or is empty, names a joint the robot does not
-            have, or holds a value outside the joint's limits.
+            have, holds a value outside the joint's limits, or gives a mimic joint a value its
+            leader's does not imply (a mimic joint that agrees is accepted and not planned).
     """
     data = yaml.load(Path(path).read_text(encoding="utf-8"), Loader=YamlLoader) or {}
     goals = {}
     for i, (entry, robot) in enumerate(zip(_list(data, "robots", str(path)), scene.robots)):
         if isinstance(entry, Mapping) and entry.get("goal") is not None:
             where = f"{path}: robots[{i}]{_label(entry)}.goal"
-            q = _read_joints(entry["goal"], robot.model, where)
-            if not entry["goal"]:
+            q = _read_joints(entry["goal"], robot.model, where, robot.configuration)
+            planned = [joint for joint in entry["goal"] if joint in robot.model.joint_names]  # mimic joints follow
+            if not planned:
                 raise SceneError(f"{where}: empty; name the planned joints and their goal values (rad or m), "
                                  f"joints: {', '.join(robot.model.joint_names)}")
-            goals[robot.name] = {joint: float(q[robot.model.joint_index(joint)]) for joint in entry["goal"]}
+            goals[robot.name] = {joint: float(q[robot.model.joint_index(joint)]) for joint in planned}
     return goals
 
 
@@ -205,15 +207,17 @@ def _read_robot(entry: Any, base_dir: Path, where: str, models: dict[str, RobotM
     return PlacedRobot(name, model, read_pose(entry.get("pose"), where), q, reference)
 
 
-def _read_joints(values: Any, model: RobotModel, where: str) -> np.ndarray:
+def _read_joints(values: Any, model: RobotModel, where: str, base: np.ndarray | None = None) -> np.ndarray:
+    """q (dof,): ``base`` (default neutral) with the joints of ``values`` set; a mimic joint's
+    value must agree with the one its leader gets (it follows it)."""
     if not isinstance(values, Mapping):
         raise SceneError(f"{where}: expected a mapping joint name -> value (rad or m), got {values!r}")
-    q = model.neutral_configuration()
+    q = model.neutral_configuration() if base is None else base.copy()
+    mimics = {joint: number(value, f"{where}.{joint}") for joint, value in values.items()
+              if joint in model.mimic_joints}
     for joint, value in values.items():
-        if joint in model.mimic_joints:
-            leader = model.joint_names[model.mimic_joints[joint][0]]
-            raise SceneError(f"{where}: '{joint}' is a mimic joint of robot '{model.name}': it follows '{leader}'; "
-                             "give that joint's value")
+        if joint in mimics:
+            continue
         if joint not in model.joint_names:
             raise SceneError(
                 f"{where}: robot '{model.name}' has no joint '{joint}'; joints: {', '.join(model.joint_names)}"
@@ -223,6 +227,7 @@ def _read_joints(values: Any, model: RobotModel, where: str) -> np.ndarray:
         lo, hi = model.lower[index], model.upper[index]
         if not lo - 1e-9 <= q[index] <= hi + 1e-9:
             raise SceneError(f"{where}.{joint}: value {q[index]:.6g} outside the limits [{lo:.6g}, {hi:.6g}]")
+    check_mimic_values(model, mimics, q, where)
     return q
 
 

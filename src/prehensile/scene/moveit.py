@@ -53,14 +53,13 @@ from prehensile.kinematics.forward import forward_kinematics
 from prehensile.model.geometry import Box, Cylinder, Geometry, Mesh, Sphere
 from prehensile.model.robot_model import RobotModel
 from prehensile.scene.scene import Body, Hold, PlacedRobot, Scene, check_hold
-from prehensile.scene.schema import YamlLoader
+from prehensile.scene.schema import YamlLoader, check_mimic_values
 from prehensile.spatial import invert, make_pose, quaternion_to_matrix
 
 log = logging.getLogger(__name__)
 
 _PRIMITIVE_IDS = {1: "box", 2: "sphere", 3: "cylinder", 4: "cone", 5: "prism"}
 _WORLD_FRAMES = ("", "world", "/world")
-MIMIC_TOLERANCE = 1e-6  # rad or m: how far a mimic joint's given value may be from the one it follows
 _PROBLEM_FILE = re.compile(r"^(scene|request)(\d+)\.ya?ml$")
 
 
@@ -375,7 +374,7 @@ def _placed_robot(state: Any, model: RobotModel, where: str) -> tuple[PlacedRobo
 
 def _configuration(model: RobotModel, values: Mapping[str, float], base, where: str, strict: bool) -> np.ndarray:
     """q (dof,): ``base`` (None: neutral) with the joints of ``values`` set. A mimic joint's
-    value must agree with the joint it follows (within :data:`MIMIC_TOLERANCE`)."""
+    value must agree with the joint it follows (:func:`~prehensile.scene.schema.check_mimic_values`)."""
     mimics = model.mimic_joints
     unknown = [joint for joint in values if joint not in model.joint_names and joint not in mimics]
     if (strict and unknown) or (values and len(unknown) == len(values)):
@@ -383,12 +382,7 @@ def _configuration(model: RobotModel, values: Mapping[str, float], base, where: 
             f"{where}: robot '{model.name}' has no joint '{unknown[0]}'; joints: {', '.join(model.joint_names)}"
         )
     q = model.configuration_from_dict({j: v for j, v in values.items() if j in model.joint_names}, base)
-    for joint in [j for j in values if j in mimics]:
-        leader, multiplier, offset = mimics[joint]
-        follows = multiplier * q[leader] + offset
-        if abs(values[joint] - follows) > MIMIC_TOLERANCE:
-            raise SceneError(f"{where}: mimic joint '{joint}' = {values[joint]:.6g} disagrees with the joint it "
-                             f"follows: {multiplier:g} * {model.joint_names[leader]} + {offset:g} = {follows:.6g}")
+    check_mimic_values(model, {j: v for j, v in values.items() if j in mimics}, q, where)
     return q
 
 

@@ -36,6 +36,7 @@ import yaml
 
 from prehensile.errors import ModelError, SceneError
 from prehensile.model.geometry import Box, Capsule, Cylinder, Geometry, Mesh, Shape, Sphere
+from prehensile.model.robot_model import RobotModel
 from prehensile.spatial import make_pose, matrix_to_rpy, quaternion_to_matrix, rpy_to_matrix
 
 SHAPE_TYPES = ("box", "sphere", "cylinder", "capsule", "mesh")
@@ -48,6 +49,7 @@ _SHAPE_FIELDS = {
     "mesh": ("file", "scale"),
 }
 _QUATERNION_TOLERANCE = 1e-3
+MIMIC_TOLERANCE = 1e-6  # rad or m: how far a mimic joint's given value may be from the one it follows
 
 
 def check_keys(entry: Any, allowed: tuple[str, ...], where: str, required: tuple[str, ...] = ()) -> Mapping:
@@ -89,6 +91,17 @@ def number(value: Any, where: str, positive: bool = False) -> float:
     if positive and not result > 0:
         raise SceneError(f"{where}: must be positive, got {result}")
     return result
+
+
+def check_mimic_values(model: RobotModel, values: Mapping[str, float], q: np.ndarray, where: str) -> None:
+    """Raise SceneError naming ``where`` unless each mimic joint of ``values`` (name -> rad or m)
+    agrees within :data:`MIMIC_TOLERANCE` with the value the joint it follows has in q (dof,)."""
+    for joint, value in values.items():
+        leader, multiplier, offset = model.mimic_joints[joint]
+        follows = multiplier * q[leader] + offset
+        if abs(value - follows) > MIMIC_TOLERANCE:
+            raise SceneError(f"{where}: mimic joint '{joint}' = {value:.6g} disagrees with the joint it follows: "
+                             f"{multiplier:g} * {model.joint_names[leader]} + {offset:g} = {follows:.6g}")
 
 
 def numbers(value: Any, count: int, where: str, positive: bool = False) -> np.ndarray:
