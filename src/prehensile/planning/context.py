@@ -263,6 +263,9 @@ class PlanningContext:
         of the joints not planned)."""
         q = self.model.check_configuration(q)
         flat = q.reshape(-1, self.model.dof)
+        fixed = flat[:, self.space.fixed]
+        if len(flat) and (fixed == fixed[0]).all():  # the usual batch: one value of the joints not planned
+            return np.full(q.shape[:-1], self._static_free_at(flat[0]))
         return np.array([self._static_free_at(row) for row in flat], dtype=bool).reshape(q.shape[:-1])
 
     def _static_free_at(self, q: np.ndarray) -> bool:
