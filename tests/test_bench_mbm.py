@@ -165,7 +165,8 @@ def test_ball_radius_sizes_the_generated_balls(tmp_path):
 
 @pytest.mark.parametrize("extra, message", [
     (["--budget", "inf"], "--budget: must be a positive, finite time (s), got inf"),
-    (["--ball-radius", "-1"], "--ball-radius: must be positive (m), got -1"),
+    (["--ball-radius", "-1"], "--ball-radius: must be positive and finite (m), got -1"),
+    (["--ball-radius", "inf"], "--ball-radius: must be positive and finite (m), got inf"),
     (["--ball-radius", "0.04", "--spheres", __file__], "give it or --spheres, not both"),
     (["--planner", "prm"], "--planner: 'prm' is not available; valid: rrt_connect"),
 ])

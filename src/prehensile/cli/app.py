@@ -62,9 +62,9 @@ def _is_number(text: str) -> bool:
 
 
 def check_ball_radius(ball_radius: float | None) -> None:
-    """Refuse a ``--ball-radius`` that is not a positive length."""
-    if ball_radius is not None and not ball_radius > 0:
-        raise PrehensileError(f"--ball-radius: must be positive (m), got {ball_radius}")
+    """Refuse a ``--ball-radius`` that is not a positive, finite length."""
+    if ball_radius is not None and not 0 < ball_radius < float("inf"):
+        raise PrehensileError(f"--ball-radius: must be positive and finite (m), got {ball_radius}")
 
 
 def handles_errors(command):

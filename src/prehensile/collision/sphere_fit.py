@@ -8,9 +8,13 @@ closed-form covers of the solid shape (not of a tessellation, which would lie in
 
 from __future__ import annotations
 
+import logging
+
 import numpy as np
 
 from prehensile.model.geometry import Box, Capsule, Cylinder, Geometry, Mesh, Sphere, shape_to_trimesh
+
+log = logging.getLogger(__name__)
 
 PRIMITIVE_OVERSHOOT = 0.02  # m: how far a primitive's balls may reach out of it by default (a box of 0.5 m
 # covered by 8 balls bulges 0.1 m: ARMAR-III's torso balls then met its hanging arms)
@@ -313,7 +317,8 @@ def cover_geometries(
         max_edge: triangles are subdivided to this edge length (m) before clustering.
         max_spheres: cap on the number of balls for the meshes and per primitive.
         max_overshoot: how far (m) a primitive's balls may reach out of it (a target: the
-            budget stops growing at ``max_spheres``).
+            budget stops growing at ``max_spheres``, logged at INFO; balls on a cylinder's
+            axis reach about 0.4 of its radius out of its flat ends).
 
     Returns:
         centres (K, 3) and radii (K,) in m.
@@ -326,9 +331,13 @@ def cover_geometries(
             budget = n_spheres
             while True:
                 c, r = cover_primitive(geometry, budget)
-                tight = (max_radius is None or r.max() <= max_radius) and primitive_overshoot(geometry, c, r) <= \
-                    max_overshoot
-                if tight or budget >= max_spheres:
+                overshoot = primitive_overshoot(geometry, c, r)
+                if (max_radius is None or r.max() <= max_radius) and overshoot <= max_overshoot:
+                    break
+                if budget >= max_spheres:
+                    if overshoot > max_overshoot:
+                        log.info("%s: %d balls reach %.3f m out of it (target %.3f m)", geometry.shape, len(r),
+                                 overshoot, max_overshoot)
                     break
                 budget = min(max_spheres, budget + max(1, budget // 4))
             centers.append(c)

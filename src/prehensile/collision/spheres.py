@@ -141,8 +141,9 @@ def generate_sphere_model(
     group is enclosed by a near-minimal ball holding all vertices of its triangles (a ball
     holding a triangle's vertices holds the triangle), so the union covers the surface.
     Primitives get exact covers of the solid, with more balls (up to 64) while a ball reaches
-    more than ``max_overshoot`` out of it. The result is cached on disk, keyed by a hash of the
-    geometry (mesh file contents included) and the parameters.
+    more than ``max_overshoot`` out of it (a target, see
+    :func:`~prehensile.collision.sphere_fit.cover_geometries`). The result is cached on disk,
+    keyed by a hash of the geometry (mesh file contents included) and the parameters.
 
     Args:
         model: the robot; links without collision geometry get no balls.
