@@ -164,8 +164,9 @@ def generate_sphere_model(
     _check_arguments("generate_sphere_model", n_spheres=(n_spheres, at_least(1)),
                      max_radius=(max_radius, or_none(FINITE_POSITIVE)), max_edge=(max_edge, FINITE_POSITIVE),
                      max_overshoot=(max_overshoot, POSITIVE))
-    params = {"kind": "generate", "n_spheres": int(n_spheres), "max_radius": max_radius, "max_edge": float(max_edge),
-              "max_overshoot": float(max_overshoot)}
+    params = {"kind": "generate", "n_spheres": int(n_spheres), "max_radius": max_radius, "max_edge": float(max_edge)}
+    if any(not isinstance(g.shape, Mesh) for geometries in model.collisions for g in geometries):
+        params["max_overshoot"] = float(max_overshoot)  # only primitives use it: meshes keep their cached balls
 
     def build() -> SphereModel:
         return _from_lists(model, [cover_geometries(geoms, n_spheres, max_radius, max_edge,
