@@ -28,8 +28,7 @@ which contain the geometry; and only where a hull overlaps, the exact mesh
 contain the geometry, and a collision is only ever declared by the exact geometry. Along the
 path meshes are surfaces (a body entering a mesh crosses it); at the path's start a geometry
 wholly inside a closed mesh collides, as in :class:`~prehensile.collision.exact.ExactChecker`
-(tested where the pair's bounds meet: covering balls must hold the solid, as generated ones
-do, not only its surface).
+(:class:`_Nesting`, for every pair with a closed mesh).
 """
 
 from __future__ import annotations
