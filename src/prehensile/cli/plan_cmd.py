@@ -13,11 +13,12 @@ and objects plus the other robots at their configurations; the objects the robot
 (``held_by`` in the scene file) move with their links instead.
 
 Writes to ``--out``: ``path.json`` (status, joint names, waypoints, the held objects with their
-links and poses in them, statistics; ``path_length_m`` is the workspace-weighted length, a bound on how far any
-point of the robot travels), on success ``trajectory.json`` (time-optimal under the limits it
-records, at rest at both ends; the corners are blended by a spline where the exact check
-accepts it, else the motion stops there; with the values of the joints not planned) and always
-``plan.png`` (the robot at the start, a few waypoints and the goal, with the objects it holds).
+links and poses in them, statistics; ``path_length_m`` is the workspace-weighted length, a
+bound on how far any point of the robot travels), on success ``trajectory.json`` (time-optimal
+under the limits it records, at rest at both ends; the corners are blended by a spline where
+the exact check accepts it, else the motion stops there; with the values of the joints not
+planned) and always ``plan.png`` (the robot at the start, a few waypoints and the goal, with
+the objects it holds).
 A failed plan removes the ``trajectory.json`` of an earlier one. Exit codes: 0 path found, 1 no
 path (the status says why, e.g. ``invalid_goal`` for a goal in collision), 2 bad input, 3 a bug.
 """
