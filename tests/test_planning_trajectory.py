@@ -221,3 +221,27 @@ def test_a_spline_that_fails_in_one_place_is_split_there_not_dropped():
     close = np.abs(split.q - near).max(axis=1) < 0.015  # only the polyline comes this close
     assert close.any() and np.max(_distance_to_polyline(split.q[close], curved)) < 1e-9
     assert np.max(_distance_to_polyline(split.q, curved)) > 1e-3  # blended elsewhere
+
+
+def test_blended_paths_of_any_scale_are_timed():
+    """Splines through corners micrometres to metres apart (escape and approach segments end a
+    planned path) get a profile within the limits; TOPP-RA once found none for runs a few mm long."""
+    rng = np.random.default_rng(7)
+    for _ in range(200):
+        n, count = rng.integers(1, 8), rng.integers(3, 9)
+        steps = rng.normal(size=(count - 1, n))
+        steps *= (10.0 ** rng.uniform(-6, 1, count - 1) / np.linalg.norm(steps, axis=1))[:, None]
+        path = np.concatenate([np.zeros((1, n)), np.cumsum(steps, axis=0)])
+        velocity, acceleration = rng.uniform(0.1, 3.0, n), rng.uniform(0.1, 10.0, n)
+        traj = time_parameterize(path, velocity, acceleration, blend_check=lambda a, b: True)
+        assert np.all(np.abs(traj.qd) <= velocity * (1 + TOL)) and np.all(np.abs(traj.qdd) <= acceleration * (1 + TOL))
+        assert np.array_equal(traj.q[0], path[0]) and np.array_equal(traj.q[-1], path[-1])
+
+
+def test_a_spline_toppra_cannot_time_stops_at_its_corners(monkeypatch):
+    import prehensile.planning.trajectory as trajectory_module
+
+    _, _, path, velocity, acceleration = _panda_problem()
+    monkeypatch.setattr(trajectory_module, "_toppra_knots", lambda *args: None)
+    traj = time_parameterize(path, velocity, acceleration, blend_check=lambda a, b: True)
+    assert np.array_equal(traj.q, time_parameterize(path, velocity, acceleration).q)

@@ -198,19 +198,20 @@ def _corners(path: np.ndarray) -> np.ndarray:
 
 def _spline(corners: np.ndarray, check: Callable[[np.ndarray, np.ndarray], bool], step: float):
     """(The cubic spline through the corners, its TOPP-RA gridpoints) if ``check`` accepts every
-    chord between samples of it spaced at most ``step`` (max-norm) apart; None otherwise."""
-    ss = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(corners, axis=0), axis=1))])
-    knots = ss / ss[-1]
+    chord between samples of it spaced at most ``step`` (max-norm) apart; None otherwise. The
+    spline's parameter is the chord length (rad or m): scaled to [0, 1], paths a few mm long
+    gave TOPP-RA path derivatives so small that it found no profile."""
+    knots = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(corners, axis=0), axis=1))])
     spline = toppra.SplineInterpolator(knots, corners, bc_type="natural")
     count = int(np.ceil(np.sum(np.max(np.abs(np.diff(corners, axis=0)), axis=1)) / step)) + 1
     while True:
-        samples = spline(np.linspace(0.0, 1.0, count + 1))
+        samples = spline(np.linspace(0.0, knots[-1], count + 1))
         if np.max(np.abs(np.diff(samples, axis=0))) <= step:
             break
         count *= 2
     if all(check(a, b) for a, b in zip(samples[:-1], samples[1:])):
         fractions = np.arange(_SPLINE_GRID) / _SPLINE_GRID
-        grid = np.append((knots[:-1, None] + np.diff(knots)[:, None] * fractions).ravel(), 1.0)
+        grid = np.append((knots[:-1, None] + np.diff(knots)[:, None] * fractions).ravel(), knots[-1])
         return spline, grid
     return None
 
@@ -229,13 +230,15 @@ def _line_knots(line: _Line, velocity: np.ndarray, acceleration: np.ndarray) -> 
 
 
 def _toppra_knots(piece, velocity: np.ndarray, acceleration: np.ndarray, grid: np.ndarray):
-    """Rest-to-rest TOPP-RA solution of a piece on ``grid``: gridpoints s (G,) and path speeds sd (G,)."""
+    """Rest-to-rest TOPP-RA solution of a piece on ``grid``: gridpoints s (G,) and path speeds sd
+    (G,), or None if TOPP-RA finds none."""
     constraints = [toppra.constraint.JointVelocityConstraint(velocity),
                    toppra.constraint.JointAccelerationConstraint(acceleration)]
     algorithm = toppra.algorithm.TOPPRA(constraints, piece, gridpoints=grid, solver_wrapper="seidel")
     _, sd, _ = algorithm.compute_parameterization(0.0, 0.0)
     if sd is None or not np.all(np.isfinite(sd)):
-        raise PrehensileError(f"time_parameterize: TOPP-RA failed ({algorithm.problem_data.return_code})")
+        log.info("time_parameterize: TOPP-RA failed on a blended piece (%s)", algorithm.problem_data.return_code)
+        return None
     return algorithm.gridpoints, np.maximum(sd, 0.0)
 
 
@@ -345,20 +348,20 @@ def _profiles(corners: np.ndarray, velocity: np.ndarray, acceleration: np.ndarra
     """Rest-to-rest pieces through the corners (M, n), each with its profile (gridpoints s (G,),
     path speeds sd (G,), constant path acceleration between them): the straight segments, or
     with ``check`` the spline through the corners (:func:`_spline`) if it passes and is faster
-    than stopping at them; a spline that fails is split at its middle corner."""
+    than stopping at them; a spline that fails the check (or that TOPP-RA cannot time) is split
+    at its middle corner."""
     lines = [(line, *_line_knots(line, velocity, acceleration))
              for line in (_Line(a, b) for a, b in zip(corners[:-1], corners[1:]))]
     if check is None or len(corners) < 3:
         return lines
     blended = _spline(corners, check, step)
-    if blended is None:
+    knots = None if blended is None else _toppra_knots(blended[0], velocity, acceleration, blended[1])
+    if knots is None:
         middle = len(corners) // 2
         return (_profiles(corners[:middle + 1], velocity, acceleration, check, step)
                 + _profiles(corners[middle:], velocity, acceleration, check, step))
-    spline, grid = blended
-    knots = _toppra_knots(spline, velocity, acceleration, grid)
     if _duration(*knots) < sum(_duration(s, sd) for _, s, sd in lines):
-        return [(spline, *knots)]
+        return [(blended[0], *knots)]
     return lines  # a spline that turns back on itself can be slower than stopping
 
 
