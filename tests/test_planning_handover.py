@@ -14,7 +14,8 @@ from prehensile.errors import PrehensileError
 from prehensile.ik import ChainSolver, ObjectRegion
 from prehensile.model.geometry import Box, Cylinder
 from prehensile.planning import AttachedObject, PlanningContext, PlanStatus, certify_path
-from prehensile.planning.ik_rrt import IKRRTSettings, ik_rrt, regrasp_sampler, separate_grasp_pairs
+from prehensile.ik.reach import reach_samples
+from prehensile.planning.ik_rrt import IKRRTSettings, ik_rrt, regrasp_sampler, self_free_reach, separate_grasp_pairs
 from prehensile.planning.jplus_rrt import JPlusRRTSettings, regrasp_jplus_rrt
 from prehensile.spatial import invert, make_pose, matrix_to_rpy, rotation_error
 
@@ -122,6 +123,25 @@ def test_separate_grasp_pairs_drops_overlapping_hands(scene):
     ctx, arms, grasps, _ = scene
     both_front = [side_grasps([0.0, 120.0]), grasps[1]]  # the left hand where the right one is, or beside
     assert separate_grasp_pairs(ctx, arms, both_front).tolist() == [[1, 0]]
+
+
+def test_reach_samples_are_free_of_the_body_at_the_samplers_q_ref():
+    """NAO's neutral configuration puts its arms' balls into the torso. Built on a context at
+    that configuration, the hand-over sampler takes each arm's reachability samples at its own
+    valid q_ref; where the other arm is does not matter (it moves to the goal too), the body does."""
+    nao = robots.load("nao")
+    arms = [ChainSolver(nao, "left_arm_wrist"), ChainSolver(nao, "right_arm_wrist")]
+    ctx = PlanningContext(nao, [], joints=[j for arm in arms for j in arm.chain.joint_names])
+    assert not ctx.is_valid(ctx.space.q_ref)
+    rng = np.random.default_rng(0)
+    q_ref = next(q for q in nao.random_configurations(rng, 100) if ctx.is_valid(q))
+    left = self_free_reach(ctx, arms[0], q_ref)
+    assert 0 < len(left.values) < len(reach_samples(arms[0]).values)
+    elsewhere = q_ref.copy()
+    elsewhere[arms[1].var_q] = nao.random_configurations(rng, 1)[0, arms[1].var_q]
+    assert np.array_equal(self_free_reach(ctx, arms[0], elsewhere).values, left.values)
+    sampler = regrasp_sampler(ctx, arms, [np.eye(4)[None], np.eye(4)[None]], None, q_ref)
+    assert np.array_equal(sampler.q_ref, q_ref)
 
 
 def test_infeasible_hand_overs_are_statuses_within_budget(scene):

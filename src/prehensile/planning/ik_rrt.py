@@ -279,13 +279,14 @@ def regrasp_sampler(ctx: PlanningContext, arms: Sequence[ChainSolver], grasps: S
     """Hand-over goals: an object pose in ``region`` (None: anywhere) where both hands hold
     their grasps (:func:`~prehensile.ik.hybrid.solve_regrasp_ik`).
 
-    Found once here: the grasp pairs whose hands do not overlap (:func:`separate_grasp_pairs`)
-    and, per arm, the reachability samples free of self-collision (:func:`self_free_reach`).
+    Found once here, with the joints not solved at ``q_ref``: the grasp pairs whose hands do
+    not overlap (:func:`separate_grasp_pairs`) and, per arm, the reachability samples at which
+    it is free of the robot (:func:`self_free_reach`).
     """
     q_ref = ctx.check_solvers(arms, "regrasp_sampler", q_ref, free)
     check_arm_pair(arms, "regrasp_sampler")
-    pairs = separate_grasp_pairs(ctx, arms, grasps)
-    reach = [self_free_reach(ctx, arm) for arm in arms]
+    pairs = separate_grasp_pairs(ctx, arms, grasps, q_ref)
+    reach = [self_free_reach(ctx, arm, q_ref) for arm in arms]
 
     def sample(rng: np.random.Generator, call: int, attempts: int, budget: float):
         result, T_world_object = solve_regrasp_ik(arms, grasps, region, free, q_ref, rng,
@@ -298,16 +299,19 @@ def regrasp_sampler(ctx: PlanningContext, arms: Sequence[ChainSolver], grasps: S
     return GoalSampler("regrasp_sampler", q_ref, sample)
 
 
-def separate_grasp_pairs(ctx: PlanningContext, arms: Sequence[ChainSolver], grasps: Sequence[np.ndarray]) -> np.ndarray:
+def separate_grasp_pairs(ctx: PlanningContext, arms: Sequence[ChainSolver], grasps: Sequence[np.ndarray],
+                         q_ref: np.ndarray | None = None) -> np.ndarray:
     """(P, 2) the grasp pairs (index per hand into ``grasps`` (k_h, 4, 4), T_object_tcp) at which
     the two hands, with what they hold, do not overlap on the sphere model of ``ctx``.
 
     A hand is every link (attached objects included) that no planned joint moves relative to
-    the arm's tool, posed at the context's reference configuration; at a grasp pair the
-    relative pose of the two tools is fixed, ``inverse(g_a) @ g_b``, so a pair whose hands
-    overlap there fails every validity check and is not worth an IK attempt.
+    the arm's tool, posed at ``q_ref`` (dof,) (default: the context's reference configuration;
+    only its joints not planned matter); at a grasp pair the relative pose of the two tools is
+    fixed, ``inverse(g_a) @ g_b``, so a pair whose hands overlap there fails every validity
+    check and is not worth an IK attempt.
     """
-    balls = [_hand_balls(ctx, arm) for arm in arms]
+    q_ref = ctx.space.q_ref if q_ref is None else q_ref
+    balls = [_hand_balls(ctx, arm, q_ref) for arm in arms]
     (links_a, centers_a, radii_a), (links_b, centers_b, radii_b) = balls
     checked = ~ctx.acm[links_a[:, None], links_b[None, :]]
     grasp_sets = [arm.targets(g) for arm, g in zip(arms, grasps)]
@@ -320,19 +324,49 @@ def separate_grasp_pairs(ctx: PlanningContext, arms: Sequence[ChainSolver], gras
     return np.array(pairs, dtype=np.int64).reshape(-1, 2)
 
 
-def self_free_reach(ctx: PlanningContext, arm: ChainSolver) -> ReachSamples:
+def self_free_reach(ctx: PlanningContext, arm: ChainSolver, q_ref: np.ndarray | None = None) -> ReachSamples:
     """The arm's reachability samples (:func:`~prehensile.ik.reach.reach_samples`) at which the
-    robot, with its held objects and the other joints at the reference configuration, is free
-    of self-collision on the sphere model (obstacles not considered)."""
+    links it moves, with their held objects, touch neither each other nor the links that no
+    other planned joint moves relative to the arm's base (the body), on the sphere model with
+    the other joints at ``q_ref`` (dof,) (default: the context's reference configuration).
+    Obstacles, and links that other planned joints move (the other arm), are not considered:
+    they are elsewhere at the goal.
+
+    Raises:
+        PrehensileError: every sample collides (the body, at q_ref, meets the arm's first links).
+    """
+    model, q_ref = ctx.collision_model, ctx.space.q_ref if q_ref is None else q_ref
     reach = reach_samples(arm)
-    checker = SphereChecker(ctx.collision_model, [], ctx.T_world_base, ctx.sphere_model, ctx.acm)
-    q = np.tile(ctx.space.q_ref, (len(reach.values), 1))
+    checker = SphereChecker(model, [], ctx.T_world_base, ctx.sphere_model, ctx.acm | ~_arm_pairs(ctx, arm))
+    q = np.tile(q_ref, (len(reach.values), 1))
     q[:, arm.var_q] = reach.values
-    return reach.subset(checker.is_free(q))
+    free = checker.is_free(q)
+    if not free.any():
+        raise PrehensileError(f"self_free_reach: at every reachability sample of chain '{arm.chain.name}' its links "
+                              "collide with the robot's body on the sphere model, with the other joints at q_ref; "
+                              "check q_ref and the link pairs the SRDF disables")
+    return reach.subset(free)
 
 
-def _hand_balls(ctx: PlanningContext, arm: ChainSolver) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Links (B,), centres in the tool frame (B, 3) and radii (B,) of the balls rigid with the tool."""
+def _arm_pairs(ctx: PlanningContext, arm: ChainSolver) -> np.ndarray:
+    """(L, L) bool, symmetric: the link pairs of :func:`self_free_reach`, between a link the
+    arm's joints move and a link whose pose relative to the arm's base only they change."""
+    model, planned = ctx.collision_model, set(ctx.space.indices.tolist())
+    own = set(arm.var_q.tolist())
+    below = {int(model.joint_q_index[k]) for k in model.path_to_root(arm.chain.base_link)}
+
+    def planned_joints(link: int) -> set[int]:
+        return {int(model.joint_q_index[k]) for k in model.path_to_root(link)} & planned
+
+    moved = np.array([bool(planned_joints(link) & own) for link in range(model.n_links)])
+    steady = np.array([not planned_joints(link) - own - below for link in range(model.n_links)])
+    pairs = moved[:, None] & steady[None, :]
+    return pairs | pairs.T
+
+
+def _hand_balls(ctx: PlanningContext, arm: ChainSolver, q_ref: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Links (B,), centres in the tool frame (B, 3) and radii (B,) of the balls rigid with the
+    tool, posed at q_ref (dof,)."""
     model, planned = ctx.collision_model, set(ctx.space.indices.tolist())
 
     def deepest_planned(link: int) -> int:
@@ -343,7 +377,7 @@ def _hand_balls(ctx: PlanningContext, arm: ChainSolver) -> tuple[np.ndarray, np.
     spheres = ctx.sphere_model
     keep = np.isin(spheres.sphere_link, rigid)
     links = spheres.sphere_link[keep]
-    poses = forward_kinematics(model, ctx.space.q_ref, arm.T_world_root)[links]
-    T_tool_link = invert(arm.tool_pose(ctx.space.q_ref)) @ poses
+    poses = forward_kinematics(model, q_ref, arm.T_world_root)[links]
+    T_tool_link = invert(arm.tool_pose(q_ref)) @ poses
     centers = np.einsum("nij,nj->ni", T_tool_link[:, :3, :3], spheres.centers[keep]) + T_tool_link[:, :3, 3]
     return links, centers, spheres.radii[keep]
