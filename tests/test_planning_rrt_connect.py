@@ -27,6 +27,7 @@ from prehensile.clock import clock
 from prehensile.collision import sphere_kernels as SK
 from prehensile.planning.certify import CertifyReport, certified_escape, refine_after_failure
 from prehensile.planning.context import ball_joint_weights
+from prehensile.planning.cspace import IDLE_WEIGHT
 from prehensile.planning.kernels import BLOCKED, FREE, NO_LIMIT, _scales, motion_free
 from prehensile.planning.shortcut import MAX_INSERTED, prune, shortcut_rows, waypoint_marks
 from prehensile.spatial import make_pose
@@ -37,9 +38,10 @@ ALONG_X = np.array([[0.0, 0, 1], [0, 1, 0], [-1, 0, 0]])  # rotates a shape's z 
 FAST = RRTConnectSettings(time_budget_s=2.0)
 
 
-def _arm(axes=("z", "z", "z")):
+def _arm(axes=("z", "z", "z"), flange=False):
     """Three capsule links of 0.4, 0.4, 0.25 m along x, joints about ``axes``, on a base disc
-    at the origin; a geometry-less ``tip`` 0.3 m along the last link."""
+    at the origin; a geometry-less ``tip`` 0.3 m along the last link (turned about x by a
+    fourth joint if ``flange``)."""
     unit = {"x": [1.0, 0, 0], "y": [0, 1.0, 0], "z": [0, 0, 1.0]}
     def capsule(length):
         return Geometry(Capsule(0.04, length - 0.08), make_pose(ALONG_X, [length / 2, 0, 0]))
@@ -50,7 +52,8 @@ def _arm(axes=("z", "z", "z")):
     joints = [JointSpec("j1", "revolute", "base", "l1", make_pose(position=[0, 0, 0.1]), unit[axes[0]], -3.0, 3.0),
               JointSpec("j2", "revolute", "l1", "l2", make_pose(position=[0.4, 0, 0]), unit[axes[1]], -2.6, 2.6),
               JointSpec("j3", "revolute", "l2", "l3", make_pose(position=[0.4, 0, 0]), unit[axes[2]], -2.6, 2.6),
-              JointSpec("jt", "fixed", "l3", "tip", make_pose(position=[0.3, 0, 0]))]
+              JointSpec("jt", "revolute" if flange else "fixed", "l3", "tip", make_pose(position=[0.3, 0, 0]),
+                        unit["x"], -3.0, 3.0)]
     return build_model("arm", "test", links, joints)
 
 
@@ -245,6 +248,15 @@ def test_pairs_the_planned_joints_do_not_move_are_tested_exactly_once():
     assert "torso collides with RBicep" in ctx.why_invalid(hugging)
     with pytest.raises(PrehensileError, match="differ in joints the context does not plan"):
         ctx.check_motion(q, hugging)
+
+
+def test_a_joint_that_moves_no_geometry_is_planned():
+    """A bare flange bounds no motion; a small weight keeps it in the metric, and it turns to its goal."""
+    ctx = PlanningContext(_arm(flange=True), [_box("wall", [0.55, 0.25, 0.1], [0.1, 0.3, 0.3])])
+    weights = ctx.space.weights
+    assert weights[3] == pytest.approx(IDLE_WEIGHT * weights.max())
+    start, goal = np.array([0.0, 0.2, 0.0, -2.5]), np.array([1.2, -0.3, 0.4, 2.5])
+    _check_result(ctx, rrt_connect(ctx, start, goal, FAST, rng=0), start, goal)
 
 
 def test_goal_set_reports_the_goal_reached(arm):

@@ -23,8 +23,15 @@ from prehensile.errors import PrehensileError
 from prehensile.model.robot_model import PRISMATIC, REVOLUTE, RobotModel
 
 
+IDLE_WEIGHT = 1e-3  # weight of a joint that moves no geometry, relative to the largest
+
+
 def joint_weights(model: RobotModel, centers: np.ndarray, radii: np.ndarray) -> np.ndarray:
     """Worst-case surface displacement per unit motion of every variable, shape (dof,).
+
+    A revolute joint that moves no geometry (a bare flange) bounds nothing; it gets
+    :data:`IDLE_WEIGHT` times the largest weight (1 if no joint moves geometry), so that the
+    metric still counts it (nearest neighbours, steps, path length).
 
     Args:
         centers: (L, 3) centre of a ball enclosing link i's geometry, in link i's frame (m).
@@ -56,6 +63,8 @@ def joint_weights(model: RobotModel, centers: np.ndarray, radii: np.ndarray) -> 
                 stack.append((child, offset + np.linalg.norm(model.joint_origin[child][:3, 3]) + travel[child]))
         per_unit = bound if model.joint_type[j] == REVOLUTE else 1.0
         weights[model.joint_q_index[j]] += abs(model.joint_multiplier[j]) * per_unit
+    moving = weights > 0.0
+    weights[~moving] = IDLE_WEIGHT * weights.max() if moving.any() else 1.0
     return weights
 
 
