@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import logging
+import re
 
 import numpy as np
 import pytest
@@ -64,6 +65,18 @@ def test_mimic_finger_moves_opposite(tmp_path):
     assert np.allclose(a - s, -(b - s)) and np.isclose(np.linalg.norm(a - s), 0.03)
     assert model.mimic_of("finger_b") == "finger_a"
     assert model.mimic_of("finger_a") is None and model.mimic_of("base") is None
+
+
+def test_a_mimic_joint_driven_past_its_own_limits_is_reported(tmp_path, caplog):
+    """A mimic joint is bounded through its leader only (as in MoveIt); a leader whose range
+    takes it past its own limits gets a warning naming both, the model loads as before."""
+    with caplog.at_level(logging.WARNING, logger="prehensile.model.builder"):
+        load_urdf(write(tmp_path, ARM))
+        assert not caplog.records
+        model = load_urdf(write(tmp_path, ARM.replace('multiplier="1" offset="0"', 'multiplier="1.5" offset="0"')))
+    assert model.upper[model.joint_index("finger_a")] == 0.04
+    assert re.search(r"robot.urdf: mimic joint 'finger_b' \(limits 0 .. 0.04\) reaches 0 .. 0.06 within the limits of "
+                     r"'finger_a'", caplog.text)
 
 
 def test_planar_joint_expands_to_x_y_theta(tmp_path):

@@ -7,6 +7,7 @@ and calls :func:`build_model`, so tree validation and ordering live in one place
 from __future__ import annotations
 
 import dataclasses
+import logging
 
 from dataclasses import dataclass, field
 from typing import Iterable
@@ -18,6 +19,8 @@ from prehensile.model.geometry import Geometry
 from prehensile.model.robot_model import PRISMATIC, REVOLUTE, Chain, EndEffector, RobotModel
 
 JOINT_TYPES = ("revolute", "continuous", "prismatic", "fixed", "planar")
+
+log = logging.getLogger(__name__)
 
 
 @dataclass
@@ -170,6 +173,7 @@ def build_model(
         upper.append(hi)
         velocity.append(float(joint.velocity))
 
+    _warn_mimic_limits(source, expanded, q_index, lower, upper)
     n = len(order)
     link_index = {name: i for i, name in enumerate(order)}
     parent = np.full(n, -1)
@@ -244,3 +248,18 @@ def resolve_chain(model: RobotModel, chain: Chain, where: str | None = None) -> 
             joints.append(model.joint_names[q])
     return dataclasses.replace(chain, joint_names=tuple(joints))
 
+
+def _warn_mimic_limits(source: str, joints: Iterable[JointSpec], q_index: dict[str, int], lower: list[float],
+                       upper: list[float]) -> None:
+    """Warn about each mimic joint whose leader's limits take it past its own: a mimic joint
+    is bounded through its leader only (as MoveIt's passive mimic joints are)."""
+    for joint in joints:
+        if joint.mimic is None or joint.type == "continuous":
+            continue
+        leader, multiplier, offset = joint.mimic
+        ends = sorted(multiplier * x + offset for x in (lower[q_index[leader]], upper[q_index[leader]]))
+        lo = -np.inf if joint.lower is None else joint.lower
+        hi = np.inf if joint.upper is None else joint.upper
+        if ends[0] < lo - 1e-9 or ends[1] > hi + 1e-9:
+            log.warning("%s: mimic joint '%s' (limits %g .. %g) reaches %g .. %g within the limits of '%s'; it is "
+                        "bounded through '%s' only", source, joint.name, lo, hi, *ends, leader, leader)

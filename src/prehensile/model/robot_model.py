@@ -73,7 +73,9 @@ class RobotModel:
     ``joint_axis`` (L, 3) unit axis in the joint frame, ``joint_q_index`` (L,) index into q
     (-1 for fixed), ``joint_multiplier`` and ``joint_offset`` (L,) for mimic joints.
     Per-DoF arrays (dof,) hold limits in rad or m: ``lower``, ``upper`` (+-inf for continuous
-    joints), ``velocity_limit`` (rad/s or m/s). ``source`` names the description file,
+    joints), ``velocity_limit`` (rad/s or m/s); a mimic joint is bounded through its leader's
+    limits only, as MoveIt's passive mimic joints are (the loaders warn when those take it past
+    its own). ``source`` names the description file,
     ``srdf_source`` the SRDF applied to it (None if none was).
     """
 
