@@ -188,7 +188,9 @@ def shortcut(ctx: PlanningContext, path: np.ndarray, rng: np.random.Generator | 
         rng: random source or seed (:func:`~prehensile.planning.seeding.planner_rng`; the same seed gives
             the same result, unless ``time_budget_s`` cuts the attempts short).
         iterations: random shortcut attempts.
-        time_budget_s: stop the random attempts after this time (s), per try (see ``retries``).
+        time_budget_s: stop the random attempts after this time (s), per try (see ``retries``);
+            the clock is read between compiled chunks of attempts (64, 64, 128, ...), so the
+            first 64 always run.
         resolution: edge-check resolution (m); default ``ctx.resolution``.
         stats: optional (1,) int64 counter of clearance evaluations (incremented).
         min_gain: a random shortcut is checked only if it shortens the path by more than this
