@@ -278,10 +278,11 @@ def time_parameterize(path: np.ndarray, velocity_limits: float | np.ndarray, acc
     starts or ends where only the conservative balls collide (a planner's certified escape)
     needs; ``prehensile plan`` uses it.
 
-    Limits are enforced at the TOPP-RA gridpoints (the spline's knots among them) and checked
-    again between them and at every returned sample; any residual excess (numerical, or
-    between gridpoints) is removed by slowing the whole motion uniformly, so every sample
-    meets the limits (to a relative 1e-9, for rounding).
+    Limits are enforced at the TOPP-RA gridpoints (the spline's knots among them); a blended
+    piece is then slowed uniformly until it meets them at five points of every interval
+    between gridpoints too, before its duration is compared with stopping at the corners. Any
+    residual excess at the returned samples is removed by slowing the whole motion uniformly,
+    so every sample meets the limits (to a relative 1e-9, for rounding).
 
     Args:
         path: (N, n) waypoints (rad or m), N >= 1.
@@ -321,15 +322,9 @@ def time_parameterize(path: np.ndarray, velocity_limits: float | np.ndarray, acc
     profiles = _profiles(corners, velocity, acceleration, blend_check, blend_step)
     if blend_check is not None and len(profiles) < len(corners) - 1:
         log.info("time_parameterize: %d blended pieces, at rest between them", len(profiles))
-    pieces = [piece for piece, _, _ in profiles]
-    ss = np.concatenate([np.stack([s[:-1], s[1:]], axis=1) for _, s, _ in profiles])
-    sd = np.concatenate([np.stack([v[:-1], v[1:]], axis=1) for _, _, v in profiles])
-    piece_of = np.concatenate([np.full(len(s) - 1, p) for p, (_, s, _) in enumerate(profiles)])
-    durations = 2.0 * (ss[:, 1] - ss[:, 0]) / (sd[:, 0] + sd[:, 1])
-    starts = np.concatenate([[0.0], np.cumsum(durations)[:-1]])
-    # residual limit excess, measured at five points of every interval, then on the samples
-    probe = (starts[:, None] + durations[:, None] * np.array([0.0, 0.25, 0.5, 0.75, 1 - 1e-9])).ravel()
-    scale = _excess(*_evaluate(pieces, ss, sd, piece_of, starts, probe)[1:], velocity, acceleration)
+    pieces, ss, sd, piece_of, durations, starts = _intervals(profiles)
+    # residual limit excess (numerical: each piece meets the limits at the probes), then on the samples
+    scale = _probed_excess(pieces, ss, sd, piece_of, durations, starts, velocity, acceleration)
     while True:
         scaled_starts, total = starts * scale, float(np.sum(durations)) * scale
         t = np.append(np.arange(max(int(np.ceil(total / dt - 1e-6)), 1)) * dt, total)
@@ -360,14 +355,41 @@ def _profiles(corners: np.ndarray, velocity: np.ndarray, acceleration: np.ndarra
         middle = len(corners) // 2
         return (_profiles(corners[:middle + 1], velocity, acceleration, check, step)
                 + _profiles(corners[middle:], velocity, acceleration, check, step))
-    if _duration(*knots) < sum(_duration(s, sd) for _, s, sd in lines):
-        return [(blended[0], *knots)]
+    spline = _slowed((blended[0], *knots), velocity, acceleration)
+    if _duration(*spline[1:]) < sum(_duration(s, sd) for _, s, sd in lines):
+        return [spline]
     return lines  # a spline that turns back on itself can be slower than stopping
 
 
 def _duration(s: np.ndarray, sd: np.ndarray) -> float:
     """Duration (s) of a profile: gridpoints s (G,), path speeds sd (G,)."""
     return float(np.sum(2.0 * np.diff(s) / (sd[:-1] + sd[1:])))
+
+
+def _intervals(profiles: list[tuple]):
+    """The profiles' intervals of constant path acceleration, in order: (pieces, gridpoints ss
+    (K, 2), path speeds sd (K, 2) at both ends, piece of each (K,), durations (K,) (s), start
+    times (K,) (s))."""
+    pieces = [piece for piece, _, _ in profiles]
+    ss = np.concatenate([np.stack([s[:-1], s[1:]], axis=1) for _, s, _ in profiles])
+    sd = np.concatenate([np.stack([v[:-1], v[1:]], axis=1) for _, _, v in profiles])
+    piece_of = np.concatenate([np.full(len(s) - 1, p) for p, (_, s, _) in enumerate(profiles)])
+    durations = 2.0 * (ss[:, 1] - ss[:, 0]) / (sd[:, 0] + sd[:, 1])
+    return pieces, ss, sd, piece_of, durations, np.concatenate([[0.0], np.cumsum(durations)[:-1]])
+
+
+def _probed_excess(pieces, ss, sd, piece_of, durations, starts, velocity, acceleration) -> float:
+    """:func:`_excess` of the motion of :func:`_intervals` at five points of every interval."""
+    probe = (starts[:, None] + durations[:, None] * np.array([0.0, 0.25, 0.5, 0.75, 1 - 1e-9])).ravel()
+    return _excess(*_evaluate(pieces, ss, sd, piece_of, starts, probe)[1:], velocity, acceleration)
+
+
+def _slowed(profile: tuple, velocity: np.ndarray, acceleration: np.ndarray) -> tuple:
+    """A piece's profile (piece, s, sd) slowed down uniformly to meet the limits at the probes
+    of :func:`_probed_excess`: TOPP-RA meets them only at its gridpoints, and a spline's
+    curvature between them can take its acceleration well past them."""
+    piece, s, sd = profile
+    return piece, s, sd / _probed_excess(*_intervals([profile]), velocity, acceleration)
 
 
 def _excess(qd: np.ndarray, qdd: np.ndarray, velocity: np.ndarray, acceleration: np.ndarray) -> float:
