@@ -48,6 +48,7 @@ DEFAULT_ACCELERATION = 2.0
 """Acceleration limit (rad/s^2 or m/s^2); robot descriptions carry none. Conservative: most
 arms accelerate a joint at 5-20 rad/s^2 (Panda datasheet: 7.5-20)."""
 
+MAX_SAMPLES = 1_000_000  # samples of a trajectory (at dt = 0.01 s: 2.8 hours of motion)
 _SPLINE_GRID = 8  # TOPP-RA gridpoints per spline segment, knots included (the spline's second derivative kinks there)
 _DUPLICATE_TOL = 1e-9  # rad or m: waypoints closer than this (max-norm) are one waypoint
 
@@ -298,7 +299,8 @@ def time_parameterize(path: np.ndarray, velocity_limits: float | np.ndarray, acc
         a path that is a single configuration gives a one-sample trajectory of duration 0.
 
     Raises:
-        PrehensileError: malformed path or limits, or a non-positive ``dt``.
+        PrehensileError: malformed path or limits, a non-positive ``dt``, or more than
+            :data:`MAX_SAMPLES` samples.
     """
     path = np.asarray(path, dtype=float)
     if path.ndim != 2 or len(path) == 0 or path.shape[1] == 0 or not np.all(np.isfinite(path)):
@@ -327,6 +329,9 @@ def time_parameterize(path: np.ndarray, velocity_limits: float | np.ndarray, acc
     scale = _probed_excess(pieces, ss, sd, piece_of, durations, starts, velocity, acceleration)
     while True:
         scaled_starts, total = starts * scale, float(np.sum(durations)) * scale
+        if total / dt > MAX_SAMPLES:
+            raise PrehensileError(f"time_parameterize: the motion takes {total:.4g} s, {total / dt:.4g} samples at "
+                                  f"dt = {dt:g} s, more than {MAX_SAMPLES}: raise dt or the limits")
         t = np.append(np.arange(max(int(np.ceil(total / dt - 1e-6)), 1)) * dt, total)
         q, qd, qdd = _evaluate(pieces, ss, sd / scale, piece_of, scaled_starts, t)
         more = _excess(qd, qdd, velocity, acceleration)
