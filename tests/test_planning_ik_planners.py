@@ -91,13 +91,14 @@ def test_a_grasp_around_a_can_that_only_the_balls_reject_is_reached(planner):
     assert not ctx.is_valid(result.path[-1])  # the balls still touch the can there
 
 
-def test_ik_rrt_to_a_pose_the_start_reaches_stays_there(panda_scene):
-    """The first IK seed is q_ref: a start already at one of the poses is the goal configuration."""
+def test_ik_planners_to_a_pose_the_start_reaches_stay_there(panda_scene):
+    """The first IK seed is q_ref: a start already at one of the poses is the goal
+    configuration. Both planners return two waypoints, as rrt_connect from a start to itself."""
     ctx, solver, q0, goals = panda_scene
     poses = np.concatenate((goals[:1], solver.tool_pose(q0)[None]))
-    result = ik_rrt(ctx, q0, grasp_sampler(ctx, solver, poses, q0), rng=3)
-    assert result.success and result.goal_index == 1
-    assert np.abs(result.path - q0).max() < 1e-6
+    for result in (ik_rrt(ctx, q0, grasp_sampler(ctx, solver, poses, q0), rng=3), jplus_rrt(ctx, q0, poses, rng=3)):
+        assert result.success and result.goal_index == 1
+        assert result.path.shape == (2, ctx.model.dof) and np.abs(result.path - q0).max() < 1e-6
 
 
 def test_ik_planners_start_where_only_the_balls_collide(panda_scene):

@@ -21,9 +21,12 @@ def finish_path(ctx: PlanningContext, path: np.ndarray, rng: np.random.Generator
     certified (:func:`~prehensile.planning.certify.rework_certified`).
 
     Returns:
-        (SUCCESS or CERTIFICATION_FAILED, path (M, dof), shortcut time s, certification time s).
+        (SUCCESS or CERTIFICATION_FAILED, path (M >= 2, dof), shortcut time s, certification
+        time s); a start that is its own goal (N = 1) gives the path [start, start], as
+        :func:`~prehensile.planning.rrt_connect.rrt_connect` does.
     """
     start = clock()
+    path = np.concatenate((path, path)) if len(path) == 1 else path
 
     def shorten(context: PlanningContext, edge_res: float) -> np.ndarray:
         if shortcut_iterations == 0:

@@ -55,8 +55,8 @@ class PlanResult:
 
     Attributes:
         status: see :class:`PlanStatus`.
-        path: (N, dof) full-model waypoints (rad or m) from start to goal, straight segments
-            between them; (0, dof) unless ``status`` is SUCCESS.
+        path: (N >= 2, dof) full-model waypoints (rad or m) from start to goal, straight
+            segments between them; (0, dof) unless ``status`` is SUCCESS.
         stats: :class:`PlanStats`.
         goal_index: which goal of a goal set was reached: the row of the goal configurations
             (:func:`~prehensile.planning.rrt_connect.rrt_connect`) or the target pose (J+-RRT,
