@@ -7,8 +7,10 @@ from prehensile.planning.certify import CertifyReport, certify_path
 from prehensile.planning.context import PlanningContext
 from prehensile.planning.cspace import ConfigurationSpace
 from prehensile.planning.elastic_band import ElasticBandSettings, elastic_band
-from prehensile.planning.ik_rrt import GoalSampler, IKRRTSettings, grasp_sampler, ik_rrt, multi_eef_rrt
-from prehensile.planning.jplus_rrt import JPlusRRTSettings, jplus_rrt
+from prehensile.planning.ik_rrt import (
+    GoalSampler, IKRRTSettings, dual_arm_sampler, grasp_sampler, ik_rrt, multi_eef_rrt, regrasp_sampler,
+)
+from prehensile.planning.jplus_rrt import JPlusRRTSettings, jplus_rrt, regrasp_jplus_rrt
 from prehensile.planning.result import PlanResult, PlanStats, PlanStatus
 from prehensile.planning.rrt_connect import RRTConnectSearch, RRTConnectSettings, rrt_connect
 from prehensile.planning.shortcut import shortcut
@@ -18,8 +20,8 @@ _TRAJECTORY = ("Trajectory", "model_limits", "time_parameterize")
 __all__ = [
     "AttachedObject", "CertifyReport", "ConfigurationSpace", "ElasticBandSettings", "GoalSampler", "IKRRTSettings",
     "JPlusRRTSettings", "PlanResult", "PlanStats", "PlanStatus", "PlanningContext", "RRTConnectSearch",
-    "RRTConnectSettings", "certify_path", "elastic_band", "grasp_sampler", "ik_rrt", "jplus_rrt", "multi_eef_rrt",
-    "rrt_connect", "shortcut", *_TRAJECTORY,
+    "RRTConnectSettings", "certify_path", "dual_arm_sampler", "elastic_band", "grasp_sampler", "ik_rrt", "jplus_rrt",
+    "multi_eef_rrt", "regrasp_jplus_rrt", "regrasp_sampler", "rrt_connect", "shortcut", *_TRAJECTORY,
 ]
 
 
