@@ -250,6 +250,7 @@ def test_plan_to_a_position_of_a_short_arm(tmp_path):
     (["plan_demo", "--chain", "hand", "--goal", "0.01", "0.02"], "expected 1 value, one per planned joint"),
     (["plan_demo", "--goal", "a", "b"], "expected numbers"),
     (["plan_demo", "--goal", "9", "0", "0", "-2", "0", "2", "0.7"], "outside its limits"),
+    (["plan_demo", "--goal", "inf", "0", "0", "-2", "0", "2", "0.7"], "panda_joint1 = inf is not a finite number"),
     (["plan_demo", "--robot", "nao"], "no robot 'nao'; robots: panda"),
     (["plan_demo", "--chain", "leg"], "--chain: robot 'panda' has no chain 'leg'; chains: arm, hand"),
     (["plan_demo", "--chain", "hand"], "the scene's goal sets panda_joint1"),

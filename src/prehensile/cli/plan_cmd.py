@@ -103,7 +103,9 @@ def goal_configuration(robot: PlacedRobot, joints: list[str], values: list[str] 
     q = model.configuration_from_dict(goal, robot.configuration)
     for joint, value in goal.items():
         i = model.joint_index(joint)
-        if not (np.isfinite(value) and model.lower[i] - 1e-9 <= value <= model.upper[i] + 1e-9):
+        if not np.isfinite(value):
+            raise PrehensileError(f"goal: {joint} = {value} is not a finite number (rad or m)")
+        if not model.lower[i] - 1e-9 <= value <= model.upper[i] + 1e-9:
             raise PrehensileError(f"goal: {joint} = {value:.6g} is outside its limits "
                                   f"[{model.lower[i]:.6g}, {model.upper[i]:.6g}]")
     return q
