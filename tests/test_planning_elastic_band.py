@@ -151,6 +151,18 @@ def test_the_ball_prefilter_changes_nothing(panda, monkeypatch):
     np.testing.assert_array_equal(elastic_band(ctx, path, settings), filtered)
 
 
+def test_a_time_budget_stops_the_iterations(panda, monkeypatch):
+    """A clock that reads one second later at each call: a 2.5 s budget (read once at the
+    start) ends the band after its third iteration, as three iterations without a budget."""
+    ctx = _context(panda, [BOX])
+    path = np.stack([Q_START, Q_GOAL])
+    three = elastic_band(ctx, path, ElasticBandSettings(max_iterations=3, tolerance=0.0))
+    ticks = iter(range(1000))
+    monkeypatch.setattr(elastic_band_module, "clock", lambda: float(next(ticks)))
+    cut = elastic_band(ctx, path, ElasticBandSettings(max_iterations=100, tolerance=0.0, time_budget_s=2.5))
+    assert next(ticks) == 4 and np.array_equal(cut, three)
+
+
 def test_a_colliding_input_path_is_refused(panda):
     """The hand sweeps through a box on the second edge: an error names that edge and link."""
     low = Obstacle("low box", Box((0.1, 0.1, 0.3)), make_pose(position=[0.633, 0.0, 0.15]))
@@ -172,6 +184,8 @@ def test_bad_settings_and_path(panda):
         ElasticBandSettings(max_spacing=0)
     with pytest.raises(PrehensileError, match="ElasticBandSettings.certify_retries must be an integer >= 0, got -1"):
         ElasticBandSettings(certify_retries=-1)
+    with pytest.raises(PrehensileError, match="ElasticBandSettings.time_budget_s must be > 0 and finite or None"):
+        ElasticBandSettings(time_budget_s=0.0)
     ctx = _context(panda, [])
     with pytest.raises(PrehensileError, match=r"elastic_band: path must have shape \(N >= 1, 8\)"):
         elastic_band(ctx, np.zeros((0, 8)))

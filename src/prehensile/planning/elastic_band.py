@@ -50,6 +50,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from prehensile.clock import clock
 from prehensile.kinematics import forward_kinematics, frame_jacobian
 from prehensile.planning.certify import check_valid_path, rework_certified
 from prehensile.settings import (
@@ -78,6 +79,10 @@ class ElasticBandSettings:
         damping: λ (m/rad) of the damped pseudoinverse.
         certify: return a band that passes the exact certification, or the subdivided input.
         certify_retries: bands made again after a failed certification.
+        time_budget_s: stop iterating after this time (s) over all tries, or None (only
+            ``max_iterations`` and ``tolerance`` stop it, and the same input gives the same
+            band on any machine). A band cut short is as valid as a finished one: every
+            iteration keeps the path valid.
     """
 
     k_int: float = 0.01
@@ -89,11 +94,12 @@ class ElasticBandSettings:
     damping: float = 1e-2
     certify: bool = True
     certify_retries: int = 3
+    time_budget_s: float | None = None
 
     def __post_init__(self) -> None:
         check_fields(self, **dict.fromkeys(("k_int", "k_ext", "damping"), FINITE_NON_NEGATIVE), tolerance=NON_NEGATIVE,
                      d_min=FINITE_POSITIVE, max_iterations=at_least(0), max_spacing=or_none(POSITIVE),
-                     certify_retries=at_least(0))
+                     certify_retries=at_least(0), time_budget_s=or_none(FINITE_POSITIVE))
 
 
 def _subdivide(ctx, path: np.ndarray, spacing: float) -> np.ndarray:
@@ -169,20 +175,21 @@ def elastic_band(ctx, path: np.ndarray, settings: ElasticBandSettings = ElasticB
         PrehensileError: path is not a valid path (:func:`~prehensile.planning.certify.check_valid_path`).
     """
     path = check_valid_path(ctx, path, "elastic_band").copy()
+    deadline = np.inf if settings.time_budget_s is None else clock() + settings.time_budget_s
     if settings.max_spacing is not None:
         path = _subdivide(ctx, path, settings.max_spacing)
 
     def band(context, edge_res: float) -> np.ndarray:
-        return _tightened(context, path, settings, edge_res)
+        return _tightened(context, path, settings, edge_res, deadline)
 
     if not settings.certify:
         return band(ctx, ctx.resolution)
     return rework_certified(ctx, path, band, ctx.resolution, settings.certify_retries)[0]
 
 
-def _tightened(ctx, path: np.ndarray, settings: ElasticBandSettings, resolution: float) -> np.ndarray:
+def _tightened(ctx, path: np.ndarray, settings: ElasticBandSettings, resolution: float, deadline: float) -> np.ndarray:
     """The band's iterations on a copy of path (M, dof), each move checked on ``ctx``'s balls at
-    ``resolution`` (m)."""
+    ``resolution`` (m), until ``deadline`` (s, :func:`~prehensile.clock.clock`)."""
     path = path.copy()
     space = ctx.space
     band = space.active(path)
@@ -206,6 +213,6 @@ def _tightened(ctx, path: np.ndarray, settings: ElasticBandSettings, resolution:
             band[rows[moved]] = q[moved][:, space.indices]
             accepted += int(moved.sum())
         log.debug("elastic band iteration %d: largest step %.4g, %d waypoints moved", iteration, largest, accepted)
-        if largest < settings.tolerance or accepted == 0:
+        if largest < settings.tolerance or accepted == 0 or clock() >= deadline:
             break
     return path
