@@ -329,6 +329,29 @@ def test_checker_inputs_a_robot_without_joints_and_contacts_of_the_base():
         assert (checker.clearance(np.zeros(0)) > 0) == free
 
 
+def test_ball_contacts_agree_with_the_compiled_test():
+    """ball_contacts answers a configuration the compiled test finds free at once; every other
+    one lists its contacts. Both agree with the balls measured here in numpy, on NAO beside a box."""
+    from prehensile import robots
+
+    nao = robots.load("nao")
+    box = Obstacle("box", Box((0.06, 0.4, 0.1)), make_pose(position=[0.18, 0.0, 0.1]))  # in reach of both arms
+    checker = SphereChecker(nao, [box])
+    balls, moving = checker.spheres, checker.data[14]  # the links measured against the world
+    q = nao.random_configurations(np.random.default_rng(0), 300)
+    poses = forward_kinematics(nao, q)[:, balls.sphere_link]
+    centers = np.einsum("bnij,nj->bni", poses[..., :3, :3], balls.centers) + poses[..., :3, 3]
+    tested = np.isin(balls.sphere_link, checker.group_links[moving])
+    hits_world = [np.any(_ball_to_obstacle(c[tested], balls.radii[tested], box) < 0.0) for c in centers]
+    overlaps = checker.link_overlaps(q).any(axis=(1, 2))
+    free = checker.is_free(q)
+    assert 30 < free.sum() < len(q) - 30 and any(hits_world) and overlaps.any()
+    assert np.array_equal(free, ~(overlaps | hits_world))
+    for k in range(len(q)):
+        contacts = checker.ball_contacts(q[k])
+        assert (contacts == []) == free[k] and (("world" in {b for _, b in contacts}) == hits_world[k])
+
+
 @pytest.mark.parametrize("kwargs, message", [
     ({"max_edge": 0.0}, "max_edge must be > 0 and finite, got 0.0"),  # used to subdivide forever
     ({"max_radius": -1.0}, "max_radius must be > 0 and finite or None, got -1.0"),
