@@ -194,6 +194,26 @@ def test_an_invalid_input_path_names_the_links_that_collide():
         check_valid_path(ctx, np.stack([a, b]), "test")
 
 
+def test_a_mesh_piece_wholly_inside_a_closed_mesh_collides_whichever_vertex_comes_first():
+    """A link mesh of two closed cubes (a merged file), one in a closed crate and one outside;
+    first in its vertex list an unused vertex, outside too. Each connected piece is tested for
+    containment, so the exact checker and the certification both see the cube in the crate."""
+    cube = trimesh.creation.box(extents=(0.04, 0.04, 0.04))
+    inside, outside = cube.vertices + [0.3, 0.0, 0.0], cube.vertices + [0.6, 0.0, 0.0]
+    vertices = np.concatenate([[[0.6, 0.5, 0.0]], outside, inside])
+    faces = np.concatenate([cube.faces + 1, cube.faces + 9])
+    joint = [JointSpec("j1", "revolute", "base", "hand", np.eye(4), [1.0, 0, 0], -3.0, 3.0)]  # turns about x
+    model = build_model("hand", "test", [LinkSpec("base"), LinkSpec("hand", collisions=[Geometry(
+        Mesh.from_arrays(vertices, faces))])], joint)
+    crate = trimesh.creation.box(extents=(0.2, 1.2, 1.2))
+    world = [Obstacle("crate", Mesh.from_arrays(crate.vertices, crate.faces), make_pose(position=[0.3, 0.0, 0.0]))]
+    ctx = PlanningContext(model, world, spheres=generate_sphere_model(model, cache=False))
+    path = np.array([[-1.0], [1.0]])
+    assert not ctx.exact.is_free(path[0]) and ctx.exact.collisions(path[0])[0][:2] == ("hand", "crate")
+    report = certify_path(ctx, path)
+    assert not report.ok and report.colliding_links == ("hand",)
+
+
 def test_a_path_starting_wholly_inside_a_closed_mesh_fails():
     """A pebble inside a link's closed box mesh never meets its surface while the link turns
     about it, nor does a pebble link inside a closed mesh obstacle: only the containment test

@@ -7,7 +7,8 @@ collision when a triangle meets the other body, not when one body lies wholly in
 mesh. The checks of single configurations here (:meth:`ExactChecker.is_free`,
 :meth:`ExactChecker.collisions`) add that case for closed (watertight) meshes: where the
 convex hulls meet but the surfaces do not, a point of one body inside the other closed mesh
-(winding number) is a collision. Open meshes (a sheet, a crate's walls without thickness) stay
+(winding number) is a collision, one point per connected piece of a mesh (a file may hold
+several parts). Open meshes (a sheet, a crate's walls without thickness) stay
 surfaces. Along a path, a body cannot get inside without crossing a surface, which the
 certification finds; it tests containment at the path's start. This checker certifies paths;
 planners use
@@ -21,6 +22,7 @@ from weakref import WeakKeyDictionary
 
 import coal
 import numpy as np
+import trimesh
 
 from prehensile.collision.acm import allowed_collision_matrix, rigid_bodies
 from prehensile.collision.sphere_fit import box_cover, geometry_triangles
@@ -115,9 +117,16 @@ def inside_closed_mesh(triangles: np.ndarray, point: np.ndarray) -> bool:
     return abs(float(np.sum(np.arctan2(numerator, denominator)))) > np.pi  # winding number above 1/2
 
 
-def _anchor(shape: Shape) -> np.ndarray:
-    """(3,) a point of ``shape`` in its own frame: a primitive's centre, a mesh's first vertex."""
-    return np.asarray(shape.trimesh.vertices[0], dtype=float) if isinstance(shape, Mesh) else np.zeros(3)
+def _anchors(shape: Shape) -> np.ndarray:
+    """(k, 3) a point of each connected piece of ``shape`` in its own frame: a primitive's
+    centre; a vertex of every connected set of a mesh's faces (a mesh file may merge parts, and
+    hold vertices no face uses)."""
+    if not isinstance(shape, Mesh):
+        return np.zeros((1, 3))
+    mesh = shape.trimesh.copy()
+    mesh.merge_vertices()
+    pieces = trimesh.graph.connected_components(mesh.edges, nodes=np.unique(mesh.faces))
+    return np.asarray(mesh.vertices[[piece[0] for piece in pieces]], dtype=float).reshape(-1, 3)
 
 
 def coal_transform(T: np.ndarray):
@@ -126,8 +135,8 @@ def coal_transform(T: np.ndarray):
 
 
 _SLACK = 1e-5  # m: bounds this far apart may still hold geometries that coal finds touching
-# a placed geometry: (exact, convex bound, coal transform, pose (4, 4), closed triangles or None, anchor (3,))
-_EXACT, _BOUND, _POSE, _MATRIX, _CLOSED, _ANCHOR = 0, 1, 2, 3, 4, 5
+# a placed geometry: (exact, convex bound, coal transform, pose (4, 4), closed triangles or None, anchors (k, 3))
+_EXACT, _BOUND, _POSE, _MATRIX, _CLOSED, _ANCHORS = 0, 1, 2, 3, 4, 5
 
 
 def _convex(placed: tuple) -> bool:
@@ -188,7 +197,7 @@ class RobotPart(NamedTuple):
         radius: that ball's radius (m).
         closed: (F, 3, 3) triangles of a closed mesh in the geometry's frame, else None
             (:func:`closed_triangles`).
-        anchor: (3,) a point of the geometry in its frame.
+        anchors: (k, 3) a point of each connected piece of the geometry, in its frame.
     """
 
     link: int
@@ -199,7 +208,7 @@ class RobotPart(NamedTuple):
     center: np.ndarray
     radius: float
     closed: np.ndarray | None
-    anchor: np.ndarray
+    anchors: np.ndarray
 
 
 _ROBOT_PARTS: WeakKeyDictionary = WeakKeyDictionary()
@@ -216,7 +225,7 @@ def robot_parts(model: RobotModel) -> tuple[RobotPart, ...]:
                 exact, T = coal_geometry(g.shape), np.asarray(g.T_link_geom, dtype=float)
                 center, radius = enclosing_ball(g.shape, T)
                 parts.append(RobotPart(link, T, exact, convex_bound(g.shape, exact), not isinstance(g.shape, Mesh),
-                                       center, radius, closed_triangles(g.shape), _anchor(g.shape)))
+                                       center, radius, closed_triangles(g.shape), _anchors(g.shape)))
         _ROBOT_PARTS[model] = tuple(parts)
     return _ROBOT_PARTS[model]
 
@@ -232,7 +241,7 @@ class ObstaclePart(NamedTuple):
         convex: ``exact`` is convex (a primitive): ``bound`` is ``exact``.
         transform: ``T_world_shape`` as a coal transform.
         closed: (F, 3, 3) triangles of a closed mesh in the shape's frame, else None.
-        anchor: (3,) a point of the shape in its frame.
+        anchors: (k, 3) a point of each connected piece of the shape, in its frame.
     """
 
     name: str
@@ -242,7 +251,7 @@ class ObstaclePart(NamedTuple):
     convex: bool
     transform: object
     closed: np.ndarray | None
-    anchor: np.ndarray
+    anchors: np.ndarray
 
 
 def obstacle_parts(obstacles: Sequence[Obstacle]) -> tuple[ObstaclePart, ...]:
@@ -252,24 +261,26 @@ def obstacle_parts(obstacles: Sequence[Obstacle]) -> tuple[ObstaclePart, ...]:
     for o in check_obstacles(obstacles):
         exact, T = coal_geometry(o.shape), np.asarray(o.T_world_shape, dtype=float)
         parts.append(ObstaclePart(o.name, T, exact, convex_bound(o.shape, exact), not isinstance(o.shape, Mesh),
-                                  coal_transform(T), closed_triangles(o.shape), _anchor(o.shape)))
+                                  coal_transform(T), closed_triangles(o.shape), _anchors(o.shape)))
     return tuple(parts)
 
 
-def contains(closed: np.ndarray | None, T_world_closed: np.ndarray, anchor: np.ndarray,
-             T_world_anchor: np.ndarray) -> bool:
+def contains(closed: np.ndarray | None, T_world_closed: np.ndarray, anchors: np.ndarray,
+             T_world_anchors: np.ndarray) -> bool:
     """Whether the closed mesh ``closed`` (F, 3, 3, None: not a closed mesh) at pose
-    ``T_world_closed`` (4, 4) holds the point ``anchor`` (3,) of another geometry at
-    ``T_world_anchor``: that geometry lies wholly inside the mesh if their surfaces do not meet."""
+    ``T_world_closed`` (4, 4) holds one of the points ``anchors`` (k, 3) of another geometry at
+    ``T_world_anchors``: a piece of that geometry lies wholly inside the mesh if their surfaces
+    do not meet."""
     if closed is None:
         return False
-    point = T_world_anchor[:3, :3] @ anchor + T_world_anchor[:3, 3]
-    return inside_closed_mesh(closed, T_world_closed[:3, :3].T @ (point - T_world_closed[:3, 3]))
+    points = anchors @ T_world_anchors[:3, :3].T + T_world_anchors[:3, 3]
+    local = (points - T_world_closed[:3, 3]) @ T_world_closed[:3, :3]
+    return any(inside_closed_mesh(closed, point) for point in local)
 
 
 def _contains(a: tuple, b: tuple) -> bool:
     """:func:`contains` for the placed geometries a (the closed one) and b."""
-    return contains(a[_CLOSED], a[_MATRIX], b[_ANCHOR], b[_MATRIX])
+    return contains(a[_CLOSED], a[_MATRIX], b[_ANCHORS], b[_MATRIX])
 
 
 class ExactChecker:
@@ -364,7 +375,7 @@ class ExactChecker:
             if g not in placed:
                 p = self._parts[g]
                 T = poses[p.link] @ p.T_link_geom
-                placed[g] = (p.exact, p.bound, coal_transform(T), T, p.closed, p.anchor)
+                placed[g] = (p.exact, p.bound, coal_transform(T), T, p.closed, p.anchors)
             return placed[g]
 
         return part
@@ -375,7 +386,7 @@ class ExactChecker:
         for g, o in self._world_pairs[gap <= within]:
             obstacle = self.obstacle_parts[o]
             yield self._parts[g].link, o, part(g), (obstacle.exact, obstacle.bound, obstacle.transform,
-                                                    obstacle.T_world_shape, obstacle.closed, obstacle.anchor)
+                                                    obstacle.T_world_shape, obstacle.closed, obstacle.anchors)
 
     def _self_candidates(self, part, gap: np.ndarray, within: float):
         """(link index, link index, placed geometry, placed geometry) of the self pairs whose

@@ -238,8 +238,9 @@ class ExactCertifier:
 class _Nesting:
     """Which pair of a certifier (robot parts against obstacles or each other) has a geometry
     with a point inside the other's closed mesh: they overlap, and if no surfaces meet (one
-    wholly inside the other) no distance along the path shows it. Tested at a path's start;
-    from there on, getting inside means crossing a surface.
+    wholly inside the other) no distance along the path shows it. Tested at a path's start, one
+    point per connected piece of each geometry; from there on, getting inside means crossing a
+    surface.
 
     Args:
         parts: the robot's parts; obstacles: the obstacles' parts; boxes: (O, 6) their world
@@ -249,7 +250,9 @@ class _Nesting:
     def __init__(self, parts, obstacles, boxes: np.ndarray, pairs: np.ndarray) -> None:
         n = len(parts)  # geometries: the parts, then the obstacles
         self._closed = [p.closed for p in parts] + [o.closed for o in obstacles]
-        self._anchor = np.array([p.anchor for p in parts] + [o.anchor for o in obstacles]).reshape(-1, 3)
+        anchors = [p.anchors for p in parts] + [o.anchors for o in obstacles]  # a point per connected piece
+        self._anchor = np.concatenate(anchors).reshape(-1, 3)  # (A, 3) in their geometries' frames
+        self._owner = np.repeat(np.arange(len(anchors)), [len(a) for a in anchors])  # (A,) their geometries
         self._part_link = np.array([p.link for p in parts], dtype=np.int64)
         self._part_geom = np.array([p.T_link_geom for p in parts]).reshape(-1, 4, 4)
         self._part_center = np.array([p.center for p in parts]).reshape(-1, 3)
@@ -257,11 +260,12 @@ class _Nesting:
         self._obstacle_center = 0.5 * (boxes[:, :3] + boxes[:, 3:])
         self._radius = np.concatenate([[p.radius for p in parts], 0.5 * np.linalg.norm(boxes[:, 3:] - boxes[:, :3],
                                                                                        axis=1)])
-        tests = []  # (outer geometry, closed; inner geometry; pair)
+        tests = []  # (outer geometry, closed; anchor of the inner geometry; pair)
         for k, (a, o, b) in enumerate(pairs):
             other = n + o if o >= 0 else b
-            tests += [(outer, inner, k) for outer, inner in ((a, other), (other, a)) if self._closed[outer] is not None]
-        self._outer, self._inner, self._pair = np.array(tests, dtype=np.int64).reshape(-1, 3).T
+            tests += [(outer, point, k) for outer, inner in ((a, other), (other, a)) if self._closed[outer] is not None
+                      for point in np.flatnonzero(self._owner == inner)]
+        self._outer, self._point, self._pair = np.array(tests, dtype=np.int64).reshape(-1, 3).T
 
     def first_pair(self, poses: np.ndarray) -> int:
         """The first pair nested with the links at ``poses`` (L, 4, 4), or -1."""
@@ -271,10 +275,11 @@ class _Nesting:
         T = np.concatenate([link @ self._part_geom, self._obstacle_pose])  # (G, 4, 4) geometry poses
         center = np.concatenate([np.einsum("gij,gj->gi", link[:, :3, :3], self._part_center) + link[:, :3, 3],
                                  self._obstacle_center])
-        anchor = np.einsum("gij,gj->gi", T[:, :3, :3], self._anchor) + T[:, :3, 3]
-        near = np.linalg.norm(anchor[self._inner] - center[self._outer], axis=1) <= self._radius[self._outer]
-        for outer, inner, pair in zip(self._outer[near], self._inner[near], self._pair[near]):
-            if contains(self._closed[outer], T[outer], self._anchor[inner], T[inner]):
+        owner = T[self._owner]
+        anchor = np.einsum("aij,aj->ai", owner[:, :3, :3], self._anchor) + owner[:, :3, 3]
+        near = np.linalg.norm(anchor[self._point] - center[self._outer], axis=1) <= self._radius[self._outer]
+        for outer, point, pair in zip(self._outer[near], self._point[near], self._pair[near]):
+            if contains(self._closed[outer], T[outer], self._anchor[point, None], T[self._owner[point]]):
                 return int(pair)
         return -1
 
