@@ -6,8 +6,8 @@ along the path never steps farther than ``resolution`` (m, the most any part can
 where bodies are closer than that they are checked at configurations that far apart. A
 contact shorter than that along the path can pass: two box edges grazing each other at 45
 degrees passed the 2 mm default with up to 0.6 mm of overlap, a 0.5 mm plate through a 0.5 mm
-wall passed. A finer ``certify_resolution`` of the context shrinks this in proportion (at
-0.5 mm the box edges passed with up to 0.14 mm).
+wall passed. A finer ``certify_resolution`` of the context narrows this (at 0.5 mm each of
+those box-edge overlaps, down to 0.14 mm deep, was caught).
 
 Free bubbles (Quinlan 1995; Vahrenkamp 2011 C.2). For a pair (a robot part and an obstacle,
 or two parts on different links) with exact distance d at some configuration, and a weight row
