@@ -100,9 +100,16 @@ def closed_triangles(shape: Shape) -> np.ndarray | None:
     primitive or an open mesh."""
     if not isinstance(shape, Mesh):
         return None
-    mesh = shape.trimesh.copy()
-    mesh.merge_vertices()  # an STL file repeats each vertex for every triangle that has it
+    mesh = _merged(shape)
     return np.asarray(mesh.triangles, dtype=float) if mesh.is_watertight and mesh.is_winding_consistent else None
+
+
+def _merged(shape: Mesh) -> trimesh.Trimesh:
+    """The mesh of ``shape`` with repeated vertices merged (an STL file repeats each vertex for
+    every triangle that has it)."""
+    mesh = shape.trimesh.copy()
+    mesh.merge_vertices()
+    return mesh
 
 
 def inside_closed_mesh(triangles: np.ndarray, point: np.ndarray) -> bool:
@@ -123,8 +130,7 @@ def _anchors(shape: Shape) -> np.ndarray:
     hold vertices no face uses)."""
     if not isinstance(shape, Mesh):
         return np.zeros((1, 3))
-    mesh = shape.trimesh.copy()
-    mesh.merge_vertices()
+    mesh = _merged(shape)
     pieces = trimesh.graph.connected_components(mesh.edges, nodes=np.unique(mesh.faces))
     return np.asarray(mesh.vertices[[piece[0] for piece in pieces]], dtype=float).reshape(-1, 3)
 
