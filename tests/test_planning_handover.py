@@ -13,10 +13,12 @@ from prehensile.collision.spheres import generate_sphere_model
 from prehensile.errors import PrehensileError
 from prehensile.ik import ChainSolver, ObjectRegion
 from prehensile.model.geometry import Box, Cylinder
-from prehensile.planning import AttachedObject, PlanningContext, PlanStatus, certify_path
+from prehensile.planning import (
+    AttachedObject, IKRRTSettings, JPlusRRTSettings, PlanningContext, PlanStatus, certify_path, ik_rrt,
+    regrasp_jplus_rrt, regrasp_sampler,
+)
 from prehensile.ik.reach import reach_samples
-from prehensile.planning.ik_rrt import IKRRTSettings, ik_rrt, regrasp_sampler, self_free_reach, separate_grasp_pairs
-from prehensile.planning.jplus_rrt import JPlusRRTSettings, regrasp_jplus_rrt
+from prehensile.planning.ik_rrt import self_free_reach, separate_grasp_pairs
 from prehensile.spatial import invert, make_pose, matrix_to_rpy, rotation_error
 
 CUP = Cylinder(0.04, 0.2)
