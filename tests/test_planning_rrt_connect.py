@@ -509,6 +509,14 @@ def test_shortcuts_and_bands_of_a_certified_path_stay_certified_on_thin_balls(ar
     with caplog.at_level(logging.INFO, logger="prehensile.planning.certify"):
         np.testing.assert_array_equal(shortcut(alone, path, 0, retries=0), path)  # no retry: the input
     assert "none of 1 reworked paths passed the exact certification" in caplog.text
+    assert "WARNING" not in caplog.text  # the input is certified
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger="prehensile.planning.certify"):
+        np.testing.assert_array_equal(shortcut(alone, loose, 0, retries=0), loose)
+        np.testing.assert_array_equal(elastic_band(alone, loose, ElasticBandSettings(max_spacing=None,
+                                                                                     certify_retries=0)), loose)
+    for who in ("shortcut", "elastic_band"):
+        assert f"{who}: the input path fails the exact certification" in caplog.text
     pull = ElasticBandSettings(k_int=0.05, k_ext=0.0, max_iterations=200)
     assert not certify_path(ctx, elastic_band(ctx, path, dataclasses.replace(pull, certify=False))).ok
     band = elastic_band(ctx, path, pull)

@@ -436,13 +436,14 @@ def refine_after_failure(ctx: PlanningContext, context: PlanningContext, links: 
 
 
 def rework_certified(ctx: PlanningContext, path: np.ndarray, rework: Callable[[PlanningContext, float], np.ndarray],
-                     resolution: float, retries: int) -> tuple[np.ndarray, CertifyReport, float]:
+                     resolution: float, retries: int, who: str | None = None) -> tuple[np.ndarray, CertifyReport, float]:
     """The first result of ``rework(context, resolution)`` (a changed copy of ``path`` (N, dof),
     made with the sphere checks of that context at that resolution (m)) that passes
     :func:`certify_path`; after each failure it is made again as :func:`refine_after_failure`
     says, at most ``retries`` times, and then ``path`` itself is returned. Balls that do not
     cover the geometry (a spherized URDF) let a shortcut or a band pass where the geometry
-    collides; this keeps a certified path certified.
+    collides; this keeps a certified path certified. If ``who`` is given, returning a ``path``
+    that fails the certification itself is logged as a warning naming ``who``.
 
     Returns:
         (path, its :class:`CertifyReport`, time (s) spent certifying).
@@ -452,15 +453,27 @@ def rework_certified(ctx: PlanningContext, path: np.ndarray, rework: Callable[[P
         candidate = rework(context, resolution)
         report = certify_path(context, candidate)
         spent += report.time_s
-        if report.ok or candidate is path:
+        if report.ok:
             return candidate, report, spent
-        if attempt == retries:
+        if candidate is path or attempt == retries:
             break
         context, links, resolution = refine_after_failure(ctx, context, links, resolution, report,
                                                           last=attempt + 1 == retries)
-    log.info("none of %d reworked paths passed the exact certification; keeping the path as it was", retries + 1)
-    report = certify_path(ctx, path)
-    return path, report, spent + report.time_s
+    if candidate is not path:
+        log.info("none of %d reworked paths passed the exact certification; keeping the path as it was", attempt + 1)
+        report = certify_path(ctx, path)
+        spent += report.time_s
+    if who is not None and not report.ok:
+        log.warning("%s: the input path fails the exact certification (segment %d: %s) and is returned unchanged",
+                    who, report.first_bad_segment, _failure(report))
+    return path, report, spent
+
+
+def _failure(report: CertifyReport) -> str:
+    """What made a failed certification fail, in words."""
+    links = report.colliding_links
+    return ("it leaves the joint limits" if not links else f"link {links[0]} hits an obstacle" if len(links) == 1
+            else f"links {links[0]} and {links[1]} collide")
 
 
 def check_valid_path(ctx: PlanningContext, path: np.ndarray, who: str) -> np.ndarray:
@@ -483,11 +496,8 @@ def check_valid_path(ctx: PlanningContext, path: np.ndarray, who: str) -> np.nda
     for i in np.flatnonzero(~ctx.check_motions(path[:-1], path[1:])) if len(path) > 1 else ():
         report = certify_path(ctx, path[i:i + 2])
         if not report.ok:
-            links = report.colliding_links
-            why = ("it leaves the joint limits" if not links else f"link {links[0]} hits an obstacle" if len(links) == 1
-                   else f"links {links[0]} and {links[1]} collide")
             raise PrehensileError(f"{who}: the input path must be valid; its edge {i} (waypoint {i} to {i + 1}) "
-                                  f"is not: {why}")
+                                  f"is not: {_failure(report)}")
     return path
 
 

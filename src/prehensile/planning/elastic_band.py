@@ -40,7 +40,8 @@ Choices the thesis leaves open:
   spherized URDF) let waypoints move where the geometry collides. A band that fails is made
   again with covering balls on the links that collided (or at half the resolution), and after
   ``certify_retries`` such tries the subdivided input path is returned
-  (:func:`~prehensile.planning.certify.rework_certified`).
+  (:func:`~prehensile.planning.certify.rework_certified`), with a warning if it fails too
+  (an input free on balls that do not cover the geometry can).
 """
 
 from __future__ import annotations
@@ -184,7 +185,7 @@ def elastic_band(ctx, path: np.ndarray, settings: ElasticBandSettings = ElasticB
 
     if not settings.certify:
         return band(ctx, ctx.resolution)
-    return rework_certified(ctx, path, band, ctx.resolution, settings.certify_retries)[0]
+    return rework_certified(ctx, path, band, ctx.resolution, settings.certify_retries, "elastic_band")[0]
 
 
 def _tightened(ctx, path: np.ndarray, settings: ElasticBandSettings, resolution: float, deadline: float) -> np.ndarray:

@@ -196,7 +196,8 @@ def shortcut(ctx: PlanningContext, path: np.ndarray, rng: np.random.Generator | 
         min_gain: a random shortcut is checked only if it shortens the path by more than this
             fraction of its length (0: every one; larger values spend fewer checks on small gains).
         certify: return a path that passes :func:`~prehensile.planning.certify.certify_path`
-            on the exact geometry, or the input path: new edges are checked on the balls, which
+            on the exact geometry, or the input path (a warning is logged if it fails too): new
+            edges are checked on the balls, which
             may miss parts of the geometry (a spherized URDF). A shortened path that fails is
             made again with covering balls on the links that collided, or at half the
             resolution (:func:`~prehensile.planning.certify.rework_certified`).
@@ -218,7 +219,7 @@ def shortcut(ctx: PlanningContext, path: np.ndarray, rng: np.random.Generator | 
 
     if not certify:
         return shorten(ctx, res)
-    return rework_certified(ctx, path, shorten, res, int(retries))[0]
+    return rework_certified(ctx, path, shorten, res, int(retries), "shortcut")[0]
 
 
 def shortened(ctx: PlanningContext, path: np.ndarray, rng: np.random.Generator, iterations: int,
