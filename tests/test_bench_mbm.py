@@ -145,6 +145,38 @@ def test_bench_mbm_another_robot_with_generated_balls(tmp_path):
     assert all(run["ours"]["waypoints"] > 2 for run in report["runs"])  # the straight motion is blocked
 
 
+@pytest.mark.parametrize("planner, position_tolerance, rotation_tolerance", [("ik_rrt", 1e-4, 1e-3),
+                                                                             ("jplus_rrt", 1e-3, 1e-2)])
+def test_pose_planners_reach_the_goal_pose(tmp_path, planner, position_tolerance, rotation_tolerance):
+    """IK-RRT and J+-RRT plan to the pose the goal configuration gives the group's tip."""
+    _write_armar_problems(tmp_path / "problems" / "shelf_armar3")
+    out = tmp_path / "report.json"
+    result = runner.invoke(app, ["bench", "mbm", str(tmp_path / "problems"), "--robot", "armar3", "--planner",
+                                 planner, "--budget", "5", "--json", str(out)])
+    assert result.exit_code == 0, result.output
+    report = json.loads(out.read_text())
+    overall = report["overall"]
+    _check_summary(overall, len(ARMAR_PROBLEMS))
+    assert overall["solved"] == len(ARMAR_PROBLEMS) and overall["colliding_paths"] == 0
+    assert overall["certify_median_ms"] > 0
+    assert report["settings"]["planner"] == planner and f"{planner} on" in result.output
+    for run in report["runs"]:
+        assert run["ours"]["goal_error_m"] <= position_tolerance and run["ours"]["goal_error_rad"] <= rotation_tolerance
+    assert overall["goal_error_m_max"] == max(run["ours"]["goal_error_m"] for run in report["runs"])
+
+
+def test_pose_planners_need_a_chain_and_no_ompl(tmp_path):
+    _write_armar_problems(tmp_path / "problems" / "shelf_armar3")
+    request = tmp_path / "problems" / "shelf_armar3" / "request0002.yaml"
+    request.write_text(request.read_text().replace("group_name: RightArm", "group_name: right_hand"))
+    base = ["bench", "mbm", str(tmp_path / "problems"), "--robot", "armar3", "--planner", "ik_rrt"]
+    result = runner.invoke(app, base)
+    assert result.exit_code == 2
+    assert "request0002.yaml: group: ik_rrt plans to the pose of a chain's tip, and 'right_hand' is not a chain" \
+        in result.output
+    result = runner.invoke(app, [*base, "--compare-ompl"])
+    assert result.exit_code == 2 and "compare OMPL with planner rrt_connect" in result.output
+
 
 def test_ball_radius_sizes_the_generated_balls(tmp_path):
     from prehensile import robots
@@ -255,10 +287,10 @@ def test_a_timeout_names_the_end_only_the_balls_reject(tmp_path):
     prepared = PreparedProblem(model, (coarse, None), load_problems(tmp_path, model, 1)[0], MBMSettings())
     prepared.q_start = model.neutral_configuration()  # the hip's balls meet the arms' (exactly free)
     record = _record(prepared, PlanResult(PlanStatus.TIMEOUT, np.zeros((0, model.dof)), PlanStats()), 1.0,
-                     MBMSettings())
+                     MBMSettings(), certified=True)
     assert record["reason"].startswith("start: free on the exact geometry, but the sphere model's conservative balls")
     searched = PlanResult(PlanStatus.TIMEOUT, np.zeros((0, model.dof)), PlanStats(iterations=50))
-    assert "reason" not in _record(prepared, searched, 1.0, MBMSettings())  # the search ran: not the start's fault
+    assert "reason" not in _record(prepared, searched, 1.0, MBMSettings(), True)  # the search ran: not the start's fault
 
 
 @pytest.mark.parametrize("goal, message", [
@@ -345,7 +377,7 @@ def test_empty_problem_folder_exits_2(tmp_path):
 
 
 def test_settings_name_valid_choices():
-    with pytest.raises(PrehensileError, match="valid: rrt_connect"):
+    with pytest.raises(PrehensileError, match="valid: rrt_connect, ik_rrt, jplus_rrt"):
         MBMSettings(planner="prm")
     for budget in (0, float("inf"), float("nan")):
         with pytest.raises(PrehensileError, match="MBMSettings.time_budget_s must be > 0 and finite"):
@@ -363,16 +395,17 @@ def test_summaries():
     records = [
         {"status": "success", "solved": True, "time_s": 0.001, "search_s": 0.0008, "simplify_s": 0.0002,
          "certify_s": 0.01, "collision_checks": 100, "waypoints": 3, "path_length": 1.0, "exact_colliding": False,
-         "attempts": 2},
+         "goal_error_m": 2e-5, "goal_error_rad": None, "attempts": 2},
         {"status": "invalid_goal", "solved": False, "time_s": 0.0, "search_s": 0.0, "simplify_s": 0.0,
          "certify_s": 0.0, "collision_checks": 2, "waypoints": 0, "path_length": None, "exact_colliding": None,
-         "attempts": 1},
+         "goal_error_m": None, "goal_error_rad": None, "attempts": 1},
     ]
     summary = summarize(records)
     assert (summary["solved"], summary["total"], summary["colliding_paths"]) == (1, 2, 0)
     assert summary["median_ms"] == pytest.approx(1.0) and summary["path_length"] == 1.0
     assert summary["statuses"] == {"success": 1, "invalid_goal": 1}
     assert summary["planned_again"] == 1
+    assert summary["goal_error_m_max"] == 2e-5 and summary["goal_error_rad_max"] is None
 
 
 def test_ompl_takes_a_continuous_joint_starting_beyond_pi():

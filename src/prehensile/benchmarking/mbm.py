@@ -7,10 +7,14 @@ request's goal constraints. Start and goal come from the request; joints not pla
 start values, clipped into their limits (with a warning) as the scene's ``robot_state`` is.
 Every problem is read and its goal checked before the first is planned.
 
+Our planner is RRT-Connect to the goal configuration, or a pose planner (IK-RRT, J+-RRT) to
+the pose that configuration gives the tip link of the request's group (any configuration that
+reaches it will do). Returned paths of a pose planner are checked to end at that pose.
+
 Measured per problem and planner:
 
 - **planning time**: search plus simplification, wall clock, the same definition for ours
-  (the :func:`~prehensile.planning.rrt_connect` call minus its reported certification
+  (our planner's call minus its reported certification
   time) and the peer (OMPL ``solve`` + ``simplifySolution``);
 - **certification time**: our planner's exact-mesh certification, reported separately;
 - **path length**: workspace-weighted length (m) of the returned path, the same metric for both;
@@ -39,13 +43,16 @@ import numpy as np
 from prehensile.benchmarking.stats import machine, mean_or_none, ratio, time_summary, versions
 from prehensile.collision.spheres import SphereModel, generate_sphere_model, pad_sphere_model, spheres_from_urdf
 from prehensile.errors import PrehensileError
+from prehensile.kinematics import link_pose
 from prehensile.model.robot_model import RobotModel
+from prehensile.planning.to_pose import POSE_PLANNERS
 from prehensile.scene.moveit import MBMProblem, iter_mbm_problems
 from prehensile.settings import FINITE_POSITIVE, POSITIVE, at_least, check_fields
+from prehensile.spatial import rotation_error
 
 log = logging.getLogger(__name__)
 
-PLANNERS = ("rrt_connect",)
+PLANNERS = ("rrt_connect", *POSE_PLANNERS)
 
 
 @dataclass(frozen=True)
@@ -53,12 +60,14 @@ class MBMSettings:
     """Benchmark settings.
 
     Attributes:
-        planner: our planner, one of :data:`PLANNERS`.
+        planner: our planner, one of :data:`PLANNERS` (``rrt_connect`` plans to the goal
+            configuration, the others to the group's tip pose there).
         time_budget_s: search time limit per problem and planner (s).
         seed: seed of our planner's generators (per problem, from the seed, the scenario name and
             the problem's index, so a problem plans the same in any set) and of OMPL.
         limit: at most this many problems per scenario (0: all).
-        compare_ompl: also run OMPL's RRT-Connect on every problem.
+        compare_ompl: also run OMPL's RRT-Connect on every problem (to the goal configuration,
+            so only beside ``rrt_connect``).
         resolution: motion-check spacing (m, workspace-weighted) of both planners.
         certify_resolution: our planner's exact certification spacing (m).
         verify_resolution: spacing (m) of the independent exact re-check of returned paths.
@@ -76,6 +85,9 @@ class MBMSettings:
     def __post_init__(self) -> None:
         if self.planner not in PLANNERS:
             raise PrehensileError(f"planner '{self.planner}' is not available; valid: {', '.join(PLANNERS)}")
+        if self.compare_ompl and self.planner != "rrt_connect":
+            raise PrehensileError(f"compare_ompl: OMPL's RRT-Connect plans to the goal configuration, {self.planner} "
+                                  "to a pose; compare OMPL with planner rrt_connect")
         check_fields(self, time_budget_s=FINITE_POSITIVE, seed=at_least(0), limit=at_least(0),
                      **dict.fromkeys(("resolution", "certify_resolution", "verify_resolution"), POSITIVE))
 
@@ -187,12 +199,32 @@ class PreparedProblem:
         self.q_start, self.q_goal = _clip_unplanned(model, problem, joints)
         scene = problem.scene
         robot, T_world_base = (scene.robots[0].name, scene.robots[0].T_world_base) if scene.robots else (None, None)
+        self.tip = goal_tip(model, problem, settings.planner)
+        # the pose planners' goal: the tip link's world pose (4, 4) at the goal configuration
+        self.target = None if self.tip is None else link_pose(model, self.q_goal, self.tip, T_world_base=T_world_base)
         self.ctx = PlanningContext(model, scene.collision_obstacles(robot), joints=joints, q_ref=self.q_start,
                                    T_world_base=T_world_base, spheres=spheres[0], cover=spheres[1],
                                    attached=scene.attached_objects(robot), resolution=settings.resolution,
                                    certify_resolution=settings.certify_resolution)
         # the exact certifier is built on first use: build it here, outside the timed planner call
         _ = self.ctx.certifier
+
+
+def goal_tip(model: RobotModel, problem: MBMProblem, planner: str) -> str | None:
+    """The link a pose planner brings to the goal pose (the tip of the request's group), None
+    for ``rrt_connect``.
+
+    Raises:
+        PrehensileError: the request's group is not a chain of the model.
+    """
+    if planner not in POSE_PLANNERS:
+        return None
+    group = problem.request.group
+    if group not in model.chains:
+        raise PrehensileError(f"{problem.request.source}: group: {planner} plans to the pose of a chain's tip, and "
+                              f"'{group}' is not a chain of robot '{model.name}' (chains: "
+                              f"{', '.join(model.chains) or '(none)'}{'' if model.srdf_source else '; give the SRDF'})")
+    return model.chain(group).tip_link
 
 
 def _clip_unplanned(model: RobotModel, problem: MBMProblem, joints: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
@@ -210,14 +242,16 @@ def _clip_unplanned(model: RobotModel, problem: MBMProblem, joints: Sequence[str
     return q_start, q_goal
 
 
-def check_problems(model: RobotModel, problems: Sequence[MBMProblem]) -> None:
-    """Check every problem's planned joints, start and goal before any is planned.
+def check_problems(model: RobotModel, problems: Sequence[MBMProblem], planner: str = "rrt_connect") -> None:
+    """Check every problem's planned joints, start and goal (and for a pose planner its
+    group's tip) before any is planned.
 
     Raises:
-        PrehensileError: naming the first request at fault (see :func:`check_request`).
+        PrehensileError: naming the first request at fault (see :func:`check_request`, :func:`goal_tip`).
     """
     for problem in problems:
         check_request(model, problem, planned_joints(model, problem))
+        goal_tip(model, problem, planner)
         problem.request.goal_configuration(model)  # and the start it builds on
 
 
@@ -227,14 +261,23 @@ def problem_seed(settings: MBMSettings, problem: MBMProblem) -> list[int]:
 
 
 def _ours(prepared: PreparedProblem, settings: MBMSettings) -> dict:
-    from prehensile.planning import RRTConnectSettings, rrt_connect
-
     rng = np.random.default_rng(problem_seed(settings, prepared.problem))
     start = time.perf_counter()
-    result = rrt_connect(prepared.ctx, prepared.q_start, prepared.q_goal,
-                         settings=RRTConnectSettings(time_budget_s=settings.time_budget_s), rng=rng)
+    result = _plan(prepared, settings, rng)
     wall = time.perf_counter() - start
-    return _record(prepared, result, wall - result.stats.certify_time_s, settings)
+    return _record(prepared, result, wall - result.stats.certify_time_s, settings, certified=True)
+
+
+def _plan(prepared: PreparedProblem, settings: MBMSettings, rng: np.random.Generator | None = None):
+    """Our planner's PlanResult on one problem."""
+    from prehensile.planning import RRTConnectSettings, rrt_connect
+    from prehensile.planning.to_pose import plan_to_pose
+
+    if prepared.target is None:
+        return rrt_connect(prepared.ctx, prepared.q_start, prepared.q_goal,
+                           settings=RRTConnectSettings(time_budget_s=settings.time_budget_s), rng=rng)
+    return plan_to_pose(prepared.ctx, prepared.q_start, prepared.target, prepared.problem.request.group,
+                        settings.planner, settings.time_budget_s, rng)
 
 
 def _ompl(prepared: PreparedProblem, settings: MBMSettings) -> dict:
@@ -243,18 +286,19 @@ def _ompl(prepared: PreparedProblem, settings: MBMSettings) -> dict:
     ompl_settings = OMPLSettings(time_budget_s=settings.time_budget_s, resolution=settings.resolution)
     result = ompl_rrt_connect(prepared.ctx.space, prepared.ctx.spheres, prepared.q_start, prepared.q_goal,
                               ompl_settings, seed=settings.seed)
-    return _record(prepared, result, result.stats.plan_time_s + result.stats.simplify_time_s, settings)
+    return _record(prepared, result, result.stats.plan_time_s + result.stats.simplify_time_s, settings, certified=False)
 
 
-def _record(prepared: PreparedProblem, result, time_s: float, settings: MBMSettings) -> dict:
-    """The per-problem record of one planner's result."""
+def _record(prepared: PreparedProblem, result, time_s: float, settings: MBMSettings, certified: bool) -> dict:
+    """The per-problem record of one planner's result (``certified``: the planner certifies its paths)."""
     space = prepared.ctx.space
     record = {
         "status": result.status.value, "solved": result.success, "time_s": time_s,
         "search_s": result.stats.plan_time_s, "simplify_s": result.stats.simplify_time_s,
-        "certify_s": result.stats.certify_time_s if "certify" in result.info else None,  # None: not certified
+        "certify_s": result.stats.certify_time_s if certified else None,
         "collision_checks": result.stats.collision_checks,
         "waypoints": len(result.path), "path_length": None, "exact_colliding": None,
+        "goal_error_m": None, "goal_error_rad": None,  # pose planners: the path's end against the goal pose
         "attempts": result.info.get("attempts", 1),  # > 1: planned again after a failed certification
     }
     reason = prepared.ctx.explain(result, prepared.q_start, prepared.q_goal).info.get("reason")  # OMPL's has none
@@ -264,6 +308,11 @@ def _record(prepared: PreparedProblem, result, time_s: float, settings: MBMSetti
         record["path_length"] = space.path_length(space.active(result.path))
         record["exact_colliding"] = path_collides_exactly(space, prepared.ctx.exact, result.path,
                                                           settings.verify_resolution)
+        if prepared.target is not None:
+            ctx = prepared.ctx
+            reached = link_pose(ctx.model, result.path[-1], prepared.tip, T_world_base=ctx.T_world_base)
+            record["goal_error_m"] = float(np.linalg.norm(reached[:3, 3] - prepared.target[:3, 3]))
+            record["goal_error_rad"] = float(np.linalg.norm(rotation_error(prepared.target[:3, :3], reached[:3, :3])))
     return record
 
 
@@ -286,6 +335,8 @@ def summarize(records: Sequence[dict]) -> dict:
         "path_length": mean_or_none(r["path_length"] for r in solved),
         "colliding_paths": sum(bool(r["exact_colliding"]) for r in solved),
         "collision_checks_median": float(np.median([r["collision_checks"] for r in solved])) if solved else None,
+        **{f"{key}_max": max((r[key] for r in solved if r[key] is not None), default=None)
+           for key in ("goal_error_m", "goal_error_rad")},
         "planned_again": sum(r["attempts"] > 1 for r in records),
         "statuses": statuses,
     }
@@ -344,7 +395,7 @@ def run_mbm(problems_path: str | Path, model: RobotModel, spheres: tuple[SphereM
         "versions"}``; ``ompl`` and ``ratios`` are None without ``compare_ompl``.
     """
     problems = load_problems(problems_path, model, settings.limit)
-    check_problems(model, problems)
+    check_problems(model, problems, settings.planner)
     if progress is not None:
         progress(0, len(problems), None)
     _warm_up(model, spheres, problems[0], settings)
@@ -383,12 +434,9 @@ def _warm_up(model: RobotModel, spheres: tuple[SphereModel, SphereModel | None],
              settings: MBMSettings) -> None:
     """Compile (or load from numba's cache) every kernel on one problem before timing, the
     clearance of certified escapes too (few problems need one)."""
-    from prehensile.planning import RRTConnectSettings, rrt_connect
-
     start = time.perf_counter()
     prepared = PreparedProblem(model, spheres, problem, settings)
-    budget = RRTConnectSettings(time_budget_s=settings.time_budget_s)
-    rrt_connect(prepared.ctx, prepared.q_start, prepared.q_goal, budget)
+    _plan(prepared, settings)
     prepared.ctx.spheres.is_free(prepared.q_start)
     prepared.ctx.spheres.clearance(prepared.q_start, self_pairs=False)
     log.info("warm-up (compilation) took %.2f s", time.perf_counter() - start)

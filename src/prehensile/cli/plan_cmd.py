@@ -36,10 +36,11 @@ from prehensile.cli.app import (BALL_RADIUS_OPTION, app, check_ball_radius, chec
                                 extra_values, handles_errors)
 from prehensile.collision.attached import AttachedObject
 from prehensile.errors import PrehensileError, SceneError, UnknownFrameError, missing_file
+from prehensile.planning.to_pose import POSE_PLANNERS, plan_to_pose
 from prehensile.scene.scene import Body, PlacedRobot, Scene
 
 EXIT_NO_PATH = 1
-CONFIGURATION_PLANNERS, POSE_PLANNERS = ("rrt_connect",), ("ik_rrt", "jplus_rrt")
+CONFIGURATION_PLANNERS = ("rrt_connect",)
 PLANNERS = CONFIGURATION_PLANNERS + POSE_PLANNERS
 PICTURE_WAYPOINTS = 3  # intermediate waypoints drawn besides start and goal
 
@@ -109,25 +110,6 @@ def goal_configuration(robot: PlacedRobot, joints: list[str], values: list[str] 
             raise PrehensileError(f"goal: {joint} = {value:.6g} is outside its limits "
                                   f"[{model.lower[i]:.6g}, {model.upper[i]:.6g}]")
     return q
-
-
-def plan_to_target(context, placed: PlacedRobot, chain: str, planner: str, target: np.ndarray, budget: float,
-                   seed: int):
-    """A PlanResult from the robot's start to any configuration that puts ``chain``'s tip at
-    the world pose ``target`` (4, 4) or position (3,), by ``planner`` (one of
-    :data:`POSE_PLANNERS`; a position: ik_rrt)."""
-    from prehensile.ik import ChainSolver, JacobianIKSettings
-    from prehensile.planning.ik_rrt import IKRRTSettings, grasp_sampler, ik_rrt
-    from prehensile.planning.jplus_rrt import JPlusRRTSettings, jplus_rrt
-
-    q_start, targets = placed.configuration, target[None]
-    if planner == "jplus_rrt":
-        return jplus_rrt(context, q_start, targets, settings=JPlusRRTSettings(time_budget_s=budget), rng=seed,
-                         chain=chain)
-    solver = ChainSolver(placed.model, chain, T_world_root=placed.T_world_base,
-                         settings=JacobianIKSettings(position_only=target.shape == (3,)))
-    return ik_rrt(context, q_start, grasp_sampler(context, solver, targets, q_start),
-                  IKRRTSettings(time_budget_s=budget), rng=seed)
 
 
 def plan_report(result, ctx, scene: Path, robot: PlacedRobot, q_goal: np.ndarray | None, target: np.ndarray | None,
@@ -312,7 +294,7 @@ def plan(
         result = rrt_connect(context, q_start, q_goal, settings=RRTConnectSettings(time_budget_s=budget),
                              rng=np.random.default_rng(seed))
     else:
-        result = plan_to_target(context, placed, chain, planner, pose, budget, seed)
+        result = plan_to_pose(context, q_start, pose, chain, planner, budget, seed)
     report = plan_report(result, context, path, placed, q_goal, pose, planner, seed)
     written = write_outputs(result, context, loaded, placed, report, out)
     stats = result.stats

@@ -14,14 +14,15 @@ from prehensile.planning.jplus_rrt import JPlusRRTSettings, jplus_rrt, regrasp_j
 from prehensile.planning.result import PlanResult, PlanStats, PlanStatus
 from prehensile.planning.rrt_connect import RRTConnectSearch, RRTConnectSettings, rrt_connect
 from prehensile.planning.shortcut import shortcut
+from prehensile.planning.to_pose import POSE_PLANNERS, plan_to_pose
 
 _TRAJECTORY = ("Trajectory", "model_limits", "time_parameterize")
 
 __all__ = [
-    "AttachedObject", "CertifyReport", "ConfigurationSpace", "ElasticBandSettings", "GoalSampler", "IKRRTSettings",
-    "JPlusRRTSettings", "PlanResult", "PlanStats", "PlanStatus", "PlanningContext", "RRTConnectSearch",
+    "POSE_PLANNERS", "AttachedObject", "CertifyReport", "ConfigurationSpace", "ElasticBandSettings", "GoalSampler",
+    "IKRRTSettings", "JPlusRRTSettings", "PlanResult", "PlanStats", "PlanStatus", "PlanningContext", "RRTConnectSearch",
     "RRTConnectSettings", "certify_path", "dual_arm_sampler", "elastic_band", "grasp_sampler", "ik_rrt", "jplus_rrt",
-    "multi_eef_rrt", "regrasp_jplus_rrt", "regrasp_sampler", "rrt_connect", "shortcut", *_TRAJECTORY,
+    "multi_eef_rrt", "plan_to_pose", "regrasp_jplus_rrt", "regrasp_sampler", "rrt_connect", "shortcut", *_TRAJECTORY,
 ]
 
 

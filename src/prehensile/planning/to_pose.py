@@ -1,0 +1,46 @@
+"""Planning to a tool pose (or position) with either pose planner: IK-RRT or J+-RRT."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from prehensile.errors import PrehensileError
+from prehensile.planning.context import PlanningContext
+from prehensile.planning.result import PlanResult
+
+POSE_PLANNERS = ("ik_rrt", "jplus_rrt")
+
+
+def plan_to_pose(ctx: PlanningContext, q_start: np.ndarray, target: np.ndarray, chain: str, planner: str = "ik_rrt",
+                 time_budget_s: float = 1.0, rng: np.random.Generator | int | None = None) -> PlanResult:
+    """Plan from ``q_start`` (dof,) to any configuration that puts the tip link of ``chain`` at
+    the world pose ``target`` (4, 4), or (ik_rrt only) at the world position ``target`` (3,) (m).
+
+    Args:
+        ctx: planning context that plans the chain's joints.
+        planner: one of :data:`POSE_PLANNERS`: ``ik_rrt`` (goal configurations sampled by IK
+            while the trees grow) or ``jplus_rrt`` (Jacobian steps toward the pose).
+        time_budget_s: search time limit (s).
+        rng: random source or seed.
+
+    Raises:
+        PrehensileError: an unknown planner, or a position target for jplus_rrt.
+    """
+    from prehensile.ik import ChainSolver, JacobianIKSettings
+    from prehensile.planning.ik_rrt import IKRRTSettings, grasp_sampler, ik_rrt
+    from prehensile.planning.jplus_rrt import JPlusRRTSettings, jplus_rrt
+
+    if planner not in POSE_PLANNERS:
+        raise PrehensileError(f"planner '{planner}' does not plan to a pose; valid: {', '.join(POSE_PLANNERS)}")
+    target = np.asarray(target, dtype=float)
+    if target.shape not in ((4, 4), (3,)):
+        raise PrehensileError(f"{planner}: the target must be a (4, 4) pose or a (3,) position, got {target.shape}")
+    if planner == "jplus_rrt":
+        if target.shape == (3,):
+            raise PrehensileError("jplus_rrt steps toward a full pose: give a (4, 4) target, or plan to a position "
+                                  "with ik_rrt")
+        return jplus_rrt(ctx, q_start, target[None], JPlusRRTSettings(time_budget_s=time_budget_s), rng, chain=chain)
+    solver = ChainSolver(ctx.model, chain, T_world_root=ctx.T_world_base,
+                         settings=JacobianIKSettings(position_only=target.shape == (3,)))
+    return ik_rrt(ctx, q_start, grasp_sampler(ctx, solver, target[None], q_start),
+                  IKRRTSettings(time_budget_s=time_budget_s), rng)
