@@ -381,6 +381,28 @@ def test_attached_object_is_carried_around_obstacles(arm):
     _check_result(ctx, result, start, goal)  # ctx.exact includes the rod
 
 
+def test_an_end_with_a_held_object_wholly_inside_a_closed_mesh_is_invalid(arm):
+    """The balls see a closed mesh's surface, not its inside: an end nested in it is refused
+    at once with the exact reason, not searched from until the budget runs out."""
+    import trimesh
+
+    model, spheres = arm
+    start, goal = np.array([0.0, 1.2, 0.0]), np.array([0.6, 1.2, 0.0])
+    offset = make_pose(position=[0.5, 0.0, 0.0])  # 0.25 m beyond the last link's end
+    cube = AttachedObject("cube", "l3", Box((0.04, 0.04, 0.04)), offset)
+    shell = trimesh.creation.icosphere(subdivisions=2, radius=0.1)
+    for end, status in ((goal, PlanStatus.INVALID_GOAL), (start, PlanStatus.INVALID_START)):
+        where = forward_kinematics(model, end)[model.link_index("l3")] @ offset
+        world = [Obstacle("shell", Mesh.from_arrays(shell.vertices, shell.faces), make_pose(position=where[:3, 3]))]
+        ctx = PlanningContext(model, world, spheres=spheres, attached=[cube])
+        assert ctx.spheres.is_free(end) and not ctx.is_valid(end)
+        result = rrt_connect(ctx, start, goal, RRTConnectSettings(time_budget_s=5.0), 0)
+        assert result.status is status and result.stats.plan_time_s < 1.0
+        assert "attached/cube collides with shell" in result.info["reason"]
+        bare = PlanningContext(model, world, spheres=spheres)  # the arm alone is outside the shell
+        assert bare.is_valid(end)
+
+
 def test_attached_objects_are_validated_and_may_be_several_shapes(arm):
     model, spheres = arm
     bar, ball = Box((0.2, 0.05, 0.05)), Sphere(0.04)
@@ -398,6 +420,10 @@ def test_attached_objects_are_validated_and_may_be_several_shapes(arm):
     ctx = PlanningContext(model, [], spheres=spheres, attached=[dumbbell, mirrored])
     assert len(ctx.collision_model.collisions[ctx.collision_model.link_index("attached/dumbbell")]) == 2
     assert ctx.collision_model.collisions[ctx.collision_model.link_index("attached/wedge")][0].shape.scale[1] == -1.0
+    for held, message in [(AttachedObject("mug", "l4", bar), "attached object 'mug', link: robot 'arm' has no link 'l4'"),
+                          (AttachedObject("mug", "l3", bar, touch_links="l9"), "'mug', touch_links: .* no link 'l9'")]:
+        with pytest.raises(PrehensileError, match=message):
+            PlanningContext(model, [], spheres=spheres, attached=[held])
 
 
 def test_goal_the_balls_reject_is_reached_by_a_certified_escape(arm):

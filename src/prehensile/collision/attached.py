@@ -16,7 +16,7 @@ from prehensile.collision.acm import rigid_bodies
 from prehensile.collision.sphere_fit import cover_geometries
 from prehensile.collision.spheres import SphereModel
 from prehensile.collision.world import SHAPE_SIZES, positive_size
-from prehensile.errors import PrehensileError
+from prehensile.errors import PrehensileError, UnknownFrameError
 from prehensile.model.geometry import Geometry, Shape
 from prehensile.model.robot_model import FIXED, RobotModel
 from prehensile.spatial.transforms import check_one_pose
@@ -81,6 +81,12 @@ def attach_objects(model: RobotModel, spheres: SphereModel | None, acm: np.ndarr
     names = [f"attached/{obj.name}" for obj in attached]
     if len(set(names)) != len(names) or set(names) & set(model.link_names):
         raise PrehensileError(f"attached objects need unique names, got {[obj.name for obj in attached]}")
+    for obj in attached:
+        for role, link in (("link", obj.link), *(("touch_links", name) for name in obj.touch_links)):
+            try:
+                model.link_index(link)
+            except UnknownFrameError as error:
+                raise UnknownFrameError(f"attached object '{obj.name}', {role}: {error}") from None
     n, k = model.n_links, len(attached)
     parents = [model.link_index(obj.link) for obj in attached]
     origins = [np.asarray(obj.T_link_object, dtype=float) for obj in attached]  # checked by AttachedObject

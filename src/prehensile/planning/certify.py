@@ -179,6 +179,13 @@ class ExactCertifier:
             return -1.0, 2
         return max(coal.distance(exact_a, Ta, exact_b, Tb, self._request, coal.DistanceResult()) - _TOLERANCE, 0.0), 3
 
+    def nested(self, q: np.ndarray) -> bool:
+        """Whether at q (dof,) some geometry lies wholly inside a closed mesh it may not touch
+        (no distance shows it; see :class:`_Nesting`)."""
+        poses = np.empty((self.model.n_links, 4, 4))
+        fk_into(q, self.T_world_base, self.model.joint_table, poses)
+        return self._nesting.first_pair(poses) >= 0
+
     def _links_of(self, p: int) -> tuple[str, ...]:
         """Names of the robot links in pair p."""
         a, _, b = self._pairs[p]

@@ -33,6 +33,7 @@ from prehensile.collision.spheres import SphereModel, generate_sphere_model, pad
 from prehensile.collision.world import Obstacle, check_obstacles
 from prehensile.errors import PrehensileError
 from prehensile.ik.jacobian import free_joint_indices
+from prehensile.model.geometry import Mesh
 from prehensile.model.robot_model import FIXED, PRISMATIC, REVOLUTE, RobotModel
 from prehensile.planning.cspace import ConfigurationSpace
 from prehensile.planning.result import PlanResult, PlanStatus
@@ -192,6 +193,7 @@ class PlanningContext:
                                   f"'{model.name}', got {np.shape(acm)}")
         self.model = model
         self.obstacles = check_obstacles(obstacles)
+        self._mesh_world = any(isinstance(o.shape, Mesh) for o in self.obstacles)
         self.attached = tuple(attached)
         self.resolution = resolution
         self.certify_resolution = certify_resolution
@@ -267,6 +269,18 @@ class PlanningContext:
         if len(flat) and (fixed == fixed[0]).all():  # the usual batch: one value of the joints not planned
             return np.full(q.shape[:-1], self._static_free_at(flat[0]))
         return np.array([self._static_free_at(row) for row in flat], dtype=bool).reshape(q.shape[:-1])
+
+    def exact_screen(self, q: np.ndarray) -> np.ndarray:
+        """(*batch,) bool for q (*batch, dof): free of the contacts the balls cannot see, decided
+        on the exact geometry: :meth:`static_free`, and in a world with meshes no geometry (a
+        link, a held object) wholly inside a closed mesh, whose surface the balls see only
+        when they cross it (:meth:`~prehensile.planning.certify.ExactCertifier.nested`)."""
+        free = self.static_free(q)
+        if not self._mesh_world:
+            return free
+        rows = self.model.check_configuration(q).reshape(-1, self.model.dof)
+        nested = np.array([self.certifier.nested(row) for row in rows], dtype=bool).reshape(free.shape)
+        return free & ~nested
 
     def _static_free_at(self, q: np.ndarray) -> bool:
         """:meth:`static_free` of one checked configuration q (dof,)."""
@@ -353,10 +367,10 @@ class PlanningContext:
         return self._exact_checkers["exact"]
 
     def is_valid(self, q: np.ndarray) -> np.ndarray:
-        """(*batch,) bool: q (*batch, dof) within the joint limits and free (sphere model; the
-        :attr:`static_pairs` on the exact geometry)."""
+        """(*batch,) bool: q (*batch, dof) within the joint limits and free (sphere model; what
+        it cannot see on the exact geometry, :meth:`exact_screen`)."""
         q = self.model.check_configuration(q)
-        return self.model.within_limits(q) & self.spheres.is_free(q) & self.static_free(q)
+        return self.model.within_limits(q) & self.spheres.is_free(q) & self.exact_screen(q)
 
     def is_usable_end(self, q: np.ndarray) -> bool:
         """Whether q (dof,) can end a path: valid (:meth:`is_valid`), or within the limits and

@@ -375,7 +375,7 @@ def _endpoints(ctx: PlanningContext, qs: np.ndarray, toward: np.ndarray, setting
     then: a row the balls accept is a node without one); None if it is unusable (outside the
     limits, or colliding for the balls without an escape)."""
     inside, free, near = ctx.spheres.screen(qs, 0.5 * ctx.resolution)
-    inside &= ctx.static_free(qs)  # no escape from a static contact
+    inside &= ctx.exact_screen(qs)  # no escape from a static contact or from inside a closed mesh
     valid, tight = inside & free, inside & near
     out: list[list | None] = []
     for i, q in enumerate(qs):
