@@ -290,7 +290,7 @@ def test_a_timeout_names_the_end_only_the_balls_reject(tmp_path):
                      MBMSettings(), certified=True)
     assert record["reason"].startswith("start: free on the exact geometry, but the sphere model's conservative balls")
     searched = PlanResult(PlanStatus.TIMEOUT, np.zeros((0, model.dof)), PlanStats(iterations=50))
-    assert "reason" not in _record(prepared, searched, 1.0, MBMSettings(), True)  # the search ran: not the start's fault
+    assert "reason" not in _record(prepared, searched, 1.0, MBMSettings(), True)  # the search ran: the start is fine
 
 
 @pytest.mark.parametrize("goal, message", [

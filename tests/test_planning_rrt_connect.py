@@ -420,7 +420,7 @@ def test_attached_objects_are_validated_and_may_be_several_shapes(arm):
     ctx = PlanningContext(model, [], spheres=spheres, attached=[dumbbell, mirrored])
     assert len(ctx.collision_model.collisions[ctx.collision_model.link_index("attached/dumbbell")]) == 2
     assert ctx.collision_model.collisions[ctx.collision_model.link_index("attached/wedge")][0].shape.scale[1] == -1.0
-    for held, message in [(AttachedObject("mug", "l4", bar), "attached object 'mug', link: robot 'arm' has no link 'l4'"),
+    for held, message in [(AttachedObject("mug", "l4", bar), "object 'mug', link: robot 'arm' has no link 'l4'"),
                           (AttachedObject("mug", "l3", bar, touch_links="l9"), "'mug', touch_links: .* no link 'l9'")]:
         with pytest.raises(PrehensileError, match=message):
             PlanningContext(model, [], spheres=spheres, attached=[held])

@@ -29,8 +29,9 @@ def bench_mbm(
                              "links that collided padded to cover the meshes; --pad: plan on padded balls only."),
     ball_radius: Optional[float] = BALL_RADIUS_OPTION,
     srdf: Optional[Path] = SRDF_OPTION,
-    planner: str = typer.Option("rrt_connect", "--planner", help="Our planner: rrt_connect (to the goal configuration) or, "
-                                 "to the pose that configuration gives the group's tip, ik_rrt or jplus_rrt."),
+    planner: str = typer.Option("rrt_connect", "--planner", help="Our planner: rrt_connect (to the goal "
+                                 "configuration) or, to the pose that configuration gives the group's tip, ik_rrt "
+                                 "or jplus_rrt."),
     compare_ompl: bool = typer.Option(False, "--compare-ompl", help="Also run OMPL's RRT-Connect on every problem "
                                       "(beside --planner rrt_connect)."),
     budget: float = typer.Option(1.0, "--budget", help="Search time limit per problem and planner (s)."),

@@ -19,8 +19,8 @@ from prehensile.planning.to_pose import POSE_PLANNERS, plan_to_pose
 _TRAJECTORY = ("Trajectory", "model_limits", "time_parameterize")
 
 __all__ = [
-    "POSE_PLANNERS", "AttachedObject", "CertifyReport", "ConfigurationSpace", "ElasticBandSettings", "GoalSampler",
-    "IKRRTSettings", "JPlusRRTSettings", "PlanResult", "PlanStats", "PlanStatus", "PlanningContext", "RRTConnectSearch",
+    "AttachedObject", "CertifyReport", "ConfigurationSpace", "ElasticBandSettings", "GoalSampler", "IKRRTSettings",
+    "JPlusRRTSettings", "POSE_PLANNERS", "PlanResult", "PlanStats", "PlanStatus", "PlanningContext", "RRTConnectSearch",
     "RRTConnectSettings", "certify_path", "dual_arm_sampler", "elastic_band", "grasp_sampler", "ik_rrt", "jplus_rrt",
     "multi_eef_rrt", "plan_to_pose", "regrasp_jplus_rrt", "regrasp_sampler", "rrt_connect", "shortcut", *_TRAJECTORY,
 ]

@@ -443,7 +443,8 @@ def refine_after_failure(ctx: PlanningContext, context: PlanningContext, links: 
 
 
 def rework_certified(ctx: PlanningContext, path: np.ndarray, rework: Callable[[PlanningContext, float], np.ndarray],
-                     resolution: float, retries: int, who: str | None = None) -> tuple[np.ndarray, CertifyReport, float]:
+                     resolution: float, retries: int,
+                     who: str | None = None) -> tuple[np.ndarray, CertifyReport, float]:
     """The first result of ``rework(context, resolution)`` (a changed copy of ``path`` (N, dof),
     made with the sphere checks of that context at that resolution (m)) that passes
     :func:`certify_path`; after each failure it is made again as :func:`refine_after_failure`
