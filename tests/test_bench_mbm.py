@@ -200,6 +200,7 @@ def test_ball_radius_sizes_the_generated_balls(tmp_path):
     (["--ball-radius", "-1"], "--ball-radius: must be positive and finite (m), got -1"),
     (["--ball-radius", "inf"], "--ball-radius: must be positive and finite (m), got inf"),
     (["--ball-radius", "0.04", "--spheres", __file__], "give it or --spheres, not both"),
+    (["--pad"], "--pad pads the balls of --spheres"),
     (["--planner", "prm"], "--planner: 'prm' is not available; valid: rrt_connect"),
 ])
 def test_bad_budget_and_ball_options_exit_2(tmp_path, extra, message):

@@ -345,6 +345,41 @@ def test_quaternions_are_read_as_moveit_reads_them(orientation, rotation, caplog
     assert "world.collision_objects[0] 'x'" in caplog.text and "quaternion" in caplog.text
 
 
+_GOAL = [{"joint_constraints": [{"joint_name": "j", "position": 1.0}]}]
+
+
+@pytest.mark.parametrize("request_data, message", [
+    ({"goal_constraints": {"joint_constraints": []}}, "r.yaml: goal_constraints: expected a list, got dict"),
+    ({"goal_constraints": [{"joint_constraints": {"joint_name": "j"}}]},
+     "r.yaml: goal_constraints[0].joint_constraints: expected a list, got dict"),
+    ({"start_state": {"joint_state": {"name": ["j"], "position": 5}}, "goal_constraints": _GOAL},
+     "r.yaml: start_state.joint_state.position: expected a list, got int"),
+    ({"start_state": {"joint_state": {"name": 7, "position": [0.0]}}, "goal_constraints": _GOAL},
+     "r.yaml: start_state.joint_state.name: expected a list, got int"),
+    ({"goal_constraints": _GOAL, "num_planning_attempts": "two"},
+     "r.yaml: num_planning_attempts: expected a whole number >= 1, got 'two'"),
+])
+def test_wrongly_typed_request_fields_are_named(request_data, message):
+    with pytest.raises(SceneError) as info:
+        motion_plan_request_from_dict(request_data, "r.yaml")
+    assert str(info.value) == message
+
+
+@pytest.mark.parametrize("scene, message", [
+    ({"robot_state": {"multi_dof_joint_state": {"transforms": {"translation": [0, 0, 0]}}}},
+     "s.yaml: robot_state.multi_dof_joint_state.transforms: expected a list, got dict"),
+    ({"world": {"collision_objects": {"id": "box"}}}, "s.yaml: world.collision_objects: expected a list, got dict"),
+    ({"world": {"collision_objects": [{"id": "x", "primitives": {"type": "box"}}]}},
+     "s.yaml: world.collision_objects[0] 'x'.primitives: expected a list, got dict"),
+])
+def test_wrongly_typed_scene_fields_are_named(scene, message):
+    from prehensile import robots
+
+    with pytest.raises(SceneError) as info:
+        moveit_scene_from_dict(scene, "s.yaml", robots.load("panda"))
+    assert str(info.value) == message
+
+
 def test_a_request_without_joint_goals_is_refused():
     pose_goal = {"group_name": "arm", "goal_constraints": [{"position_constraints": [{"link_name": "hand"}]}]}
     with pytest.raises(SceneError, match="r.yaml: goal_constraints\\[0\\] has no joint_constraints; only joint goals"):

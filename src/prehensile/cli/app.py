@@ -23,9 +23,11 @@ EXIT_FREE, EXIT_COLLIDING, EXIT_BAD_INPUT, EXIT_INTERNAL = 0, 1, 2, 3
 
 SRDF_OPTION = typer.Option(None, "--srdf", help="SRDF to apply: planning groups (chains), end effectors, disabled "
                            "collision pairs (default: <stem>.srdf next to a URDF or MJCF file, if present).")
-BALL_RADIUS_OPTION = typer.Option(None, "--ball-radius", help="Largest ball (m) of the sphere model generated for "
-                                  "planning (default: 8 balls per link mesh, primitives covered to within 2 cm); "
-                                  "smaller balls let links pass closer to each other and to obstacles.")
+BALL_RADIUS_OPTION = typer.Option(None, "--ball-radius", help="Target radius (m) of the largest balls of the sphere "
+                                  "model generated for planning: up to 64 balls per link are tried, and links whose "
+                                  "meshes need larger ones keep them, with a warning (default: 8 balls per link mesh, "
+                                  "primitives covered to within 2 cm); smaller balls let links pass closer to each "
+                                  "other and to obstacles.")
 
 
 def check_budget(budget: float) -> None:
@@ -35,10 +37,13 @@ def check_budget(budget: float) -> None:
         raise PrehensileError(f"--budget: must be a positive, finite time (s), got {budget}")
 
 
+MAX_SEED = 2**32 - 2  # OMPL seeds its generator with seed + 1, a std::uint_fast32_t (32 bits on some platforms)
+
+
 def check_seed(seed: int) -> None:
-    """Refuse a negative ``--seed`` (numpy's generators take none)."""
-    if seed < 0:
-        raise PrehensileError(f"--seed: must be >= 0, got {seed}")
+    """Refuse a ``--seed`` outside 0 .. :data:`MAX_SEED` (numpy's generators take no negative one)."""
+    if not 0 <= seed <= MAX_SEED:
+        raise PrehensileError(f"--seed: must be in 0 .. {MAX_SEED}, got {seed}")
 
 
 def extra_values(args: list[str], given: list[str] | None, option: str, what: str) -> list[str]:

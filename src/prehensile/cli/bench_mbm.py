@@ -62,6 +62,9 @@ def bench_mbm(
     if spheres is not None and not spheres.is_file():
         raise PrehensileError(f"--spheres {spheres}: {missing_file(spheres)}")
     check_ball_radius(ball_radius)
+    if pad and spheres is None:
+        raise PrehensileError("--pad pads the balls of --spheres: give a spherized URDF (generated balls cover the "
+                              "meshes already)")
     if spheres is not None and ball_radius is not None:
         raise PrehensileError("--ball-radius sizes generated balls: give it or --spheres, not both")
     model = load_robot(robot, srdf)

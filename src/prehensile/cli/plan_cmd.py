@@ -153,7 +153,8 @@ def _end_reason(result, ctx, q_start: np.ndarray, q_goal: np.ndarray | None) -> 
         return None
     blamed = [q for end, q in (("start", q_start), ("goal", q_goal)) if end in result.blamed_ends and q is not None]
     if any(ctx.model.within_limits(q) and ctx.exact.is_free(q) and not ctx.is_valid(q) for q in blamed):
-        reason += "; finer balls (a --ball-radius below the links' balls) may make such ends valid"
+        reason += ("; finer balls (a smaller --ball-radius, down to what the links' meshes allow) may make such "
+                   "ends valid")
     return reason
 
 

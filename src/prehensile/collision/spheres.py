@@ -151,7 +151,7 @@ def generate_sphere_model(
         max_radius: optional target for the largest ball radius (m): more balls (up to 64 per
             link) are tried while a link's largest ball exceeds it. A target, not a bound: a
             ball primitive keeps its radius, and a mesh's clusters stop shrinking at some size
-            (the Panda's links at about 0.07 m); the links left above it are logged (INFO).
+            (the Panda's links at about 0.07 m); the links left above it are logged (WARNING).
         max_edge: triangle subdivision length (m).
         max_overshoot: how far (m) a primitive's balls may reach out of it (a target, like
             ``max_radius``; infinite: ``n_spheres`` balls per primitive).
@@ -178,7 +178,8 @@ def generate_sphere_model(
         above = [f"{model.link_names[i]} {spheres.radii[spheres.sphere_link == i].max():.3f} m"
                  for i in np.unique(spheres.sphere_link[spheres.radii > max_radius])]
         if above:
-            log.info("%s: balls above max_radius %.3f m on %s", model.name, max_radius, ", ".join(above))
+            log.warning("%s: balls above the target radius %.3g m (their clusters stop shrinking) on %s",
+                        model.name, max_radius, ", ".join(above))
     return spheres
 
 

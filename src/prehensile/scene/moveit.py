@@ -184,8 +184,9 @@ def iter_mbm_problems(path: str | os.PathLike, robot: RobotModel | None = None,
 def moveit_scene_from_dict(data: Any, source: str, robot: RobotModel | None = None) -> Scene:
     """Build a :class:`Scene` from a parsed PlanningScene mapping; ``source`` prefixes errors."""
     data = _mapping(data, source)
-    frames = {str(t.get("child_frame_id", "")): _transform(t.get("transform", {}), f"{source}: fixed_frame_transforms")
-              for t in data.get("fixed_frame_transforms") or [] if isinstance(t, Mapping)}
+    where = f"{source}: fixed_frame_transforms"
+    frames = {str(t.get("child_frame_id", "")): _transform(t.get("transform", {}), where)
+              for t in _list(data.get("fixed_frame_transforms"), where) if isinstance(t, Mapping)}
     state = _mapping(data.get("robot_state") or {}, f"{source}: robot_state")
     robots: tuple[PlacedRobot, ...] = ()
     held: tuple[Body, ...] = ()
@@ -200,7 +201,7 @@ def moveit_scene_from_dict(data: Any, source: str, robot: RobotModel | None = No
         log.warning("%s: robot_state.attached_collision_objects skipped: read the scene for a robot model to "
                     "attach them", source)
     world = _mapping(data.get("world") or {}, f"{source}: world")
-    objects = world.get("collision_objects") or []
+    objects = _list(world.get("collision_objects"), f"{source}: world.collision_objects")
     bodies = tuple(
         _collision_object(obj, frames, f"{source}: world.collision_objects[{i}]{_label(obj)}")
         for i, obj in enumerate(objects)
@@ -255,10 +256,12 @@ def motion_plan_request_from_dict(data: Any, source: str) -> MotionPlanRequest:
         raise SceneError(f"{source}: start_state.attached_collision_objects: not supported in a request; attach the "
                          "objects in the scene's robot_state")
     goal: dict[str, float] = {}
-    constraints = data.get("goal_constraints") or []
+    constraints = _list(data.get("goal_constraints"), f"{source}: goal_constraints")
     if constraints:
-        for k, jc in enumerate(_mapping(constraints[0], f"{source}: goal_constraints[0]").get("joint_constraints") or []):
-            where = f"{source}: goal_constraints[0].joint_constraints[{k}]"
+        first = _mapping(constraints[0], f"{source}: goal_constraints[0]")
+        joints = f"{source}: goal_constraints[0].joint_constraints"
+        for k, jc in enumerate(_list(first.get("joint_constraints"), joints)):
+            where = f"{joints}[{k}]"
             jc = _mapping(jc, where)
             if "joint_name" not in jc:
                 raise SceneError(f"{where}: missing 'joint_name'")
@@ -272,7 +275,7 @@ def motion_plan_request_from_dict(data: Any, source: str) -> MotionPlanRequest:
         goal=goal,
         planner_id=str(data.get("planner_id", "") or ""),
         allowed_planning_time=_number(data.get("allowed_planning_time", 0.0), f"{source}: allowed_planning_time"),
-        num_planning_attempts=int(data.get("num_planning_attempts", 1) or 1),
+        num_planning_attempts=_count(data.get("num_planning_attempts", 1) or 1, f"{source}: num_planning_attempts"),
         source=source,
     )
 
@@ -294,8 +297,7 @@ def _collision_object(obj: Any, frames: Mapping[str, np.ndarray], where: str) ->
     T_world_object = T_world_frame @ (_pose(obj["pose"], f"{where}.pose") if obj.get("pose") else np.eye(4))
     geometries = []
     for kind, shapes_key, poses_key in (("primitive", "primitives", "primitive_poses"), ("mesh", "meshes", "mesh_poses")):
-        shapes = obj.get(shapes_key) or []
-        poses = obj.get(poses_key) or []
+        shapes, poses = (_list(obj.get(key), f"{where}.{key}") for key in (shapes_key, poses_key))
         if len(poses) != len(shapes):
             raise SceneError(f"{where}: {len(shapes)} {shapes_key} but {len(poses)} {poses_key}")
         for k, (shape, pose) in enumerate(zip(shapes, poses)):
@@ -366,7 +368,7 @@ def _placed_robot(state: Any, model: RobotModel, where: str) -> tuple[PlacedRobo
                     ", ".join(f"{model.joint_names[i]} = {q[i]:.6g}" for i in outside))
     T_world_base = np.eye(4)
     multi = _mapping(state.get("multi_dof_joint_state") or {}, f"{where}.multi_dof_joint_state")
-    transforms = multi.get("transforms") or []
+    transforms = _list(multi.get("transforms"), f"{where}.multi_dof_joint_state.transforms")
     if transforms:
         T_world_base = _transform(transforms[0], f"{where}.multi_dof_joint_state.transforms[0]")
     return PlacedRobot(model.name, model, T_world_base, np.clip(q, model.lower, model.upper), model.source), q
@@ -388,8 +390,7 @@ def _configuration(model: RobotModel, values: Mapping[str, float], base, where: 
 
 def _joint_state(state: Any, where: str) -> dict[str, float]:
     state = _mapping(state, where)
-    names = state.get("name") or []
-    positions = state.get("position") or []
+    names, positions = (_list(state.get(key), f"{where}.{key}") for key in ("name", "position"))
     if len(names) != len(positions):
         raise SceneError(f"{where}: {len(names)} names but {len(positions)} positions")
     return {str(n): _number(p, f"{where}.position[{i}]") for i, (n, p) in enumerate(zip(names, positions))}
@@ -437,6 +438,20 @@ def _number(value: Any, where: str) -> float:
 def _mapping(value: Any, where: str) -> Mapping:
     if not isinstance(value, Mapping):
         raise SceneError(f"{where}: expected a mapping, got {type(value).__name__}")
+    return value
+
+
+def _list(value: Any, where: str) -> list:
+    """``value`` as a list (None or empty: []); a SceneError naming ``where`` otherwise."""
+    value = value or []
+    if not isinstance(value, list):
+        raise SceneError(f"{where}: expected a list, got {type(value).__name__}")
+    return value
+
+
+def _count(value: Any, where: str) -> int:
+    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+        raise SceneError(f"{where}: expected a whole number >= 1, got {value!r}")
     return value
 
 
