@@ -127,7 +127,8 @@ def test_max_radius_is_a_target_and_the_links_above_it_are_logged(caplog):
     column = spheres.link_spheres("column")[1]
     assert spheres.link_spheres("base")[1].max() <= 0.07  # the box got more balls
     assert column.max() == pytest.approx(0.08)  # the ball primitive keeps its radius
-    assert "max_radius 0.070 m on column 0.080 m" in caplog.text and "base" not in caplog.text
+    assert "WARNING" in caplog.text and "base" not in caplog.text
+    assert "balls above the target radius 0.07 m on column 0.080 m" in caplog.text
     assert_covers(model, spheres, np.random.default_rng(0))
 
 

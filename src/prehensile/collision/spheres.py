@@ -178,8 +178,7 @@ def generate_sphere_model(
         above = [f"{model.link_names[i]} {spheres.radii[spheres.sphere_link == i].max():.3f} m"
                  for i in np.unique(spheres.sphere_link[spheres.radii > max_radius])]
         if above:
-            log.warning("%s: balls above the target radius %.3g m (their clusters stop shrinking) on %s",
-                        model.name, max_radius, ", ".join(above))
+            log.warning("%s: balls above the target radius %.3g m on %s", model.name, max_radius, ", ".join(above))
     return spheres
 
 
