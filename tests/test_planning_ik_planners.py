@@ -364,3 +364,16 @@ def test_jacobian_steps_hold_a_joint_at_its_limit_and_move_the_others_instead():
     assert damped[k] == 0.0 and np.linalg.norm(jac @ damped - err) < np.linalg.norm(jac @ clipped - err)
     with pytest.raises(PrehensileError, match="JPlusRRTSettings.damping must be >= 0 and finite"):
         JPlusRRTSettings(damping=-0.1)
+
+
+def test_plan_to_pose_names_the_valid_planners_and_targets():
+    from prehensile.planning import plan_to_pose
+
+    panda = robots.load("panda")
+    ctx = PlanningContext(panda, [], joints="arm")
+    q = panda.neutral_configuration()
+    for planner, target, message in [("rrt_connect", np.eye(4), "does not plan to a pose; valid: ik_rrt, jplus_rrt"),
+                                     ("ik_rrt", np.eye(3), r"must be a \(4, 4\) pose or a \(3,\) position"),
+                                     ("jplus_rrt", np.zeros(3), "jplus_rrt steps toward a full pose")]:
+        with pytest.raises(PrehensileError, match=message):
+            plan_to_pose(ctx, q, target, "arm", planner)

@@ -5,7 +5,10 @@ from __future__ import annotations
 import numpy as np
 
 from prehensile.errors import PrehensileError
+from prehensile.ik import ChainSolver, JacobianIKSettings
 from prehensile.planning.context import PlanningContext
+from prehensile.planning.ik_rrt import IKRRTSettings, grasp_sampler, ik_rrt
+from prehensile.planning.jplus_rrt import JPlusRRTSettings, jplus_rrt
 from prehensile.planning.result import PlanResult
 
 POSE_PLANNERS = ("ik_rrt", "jplus_rrt")
@@ -26,10 +29,6 @@ def plan_to_pose(ctx: PlanningContext, q_start: np.ndarray, target: np.ndarray, 
     Raises:
         PrehensileError: an unknown planner, or a position target for jplus_rrt.
     """
-    from prehensile.ik import ChainSolver, JacobianIKSettings
-    from prehensile.planning.ik_rrt import IKRRTSettings, grasp_sampler, ik_rrt
-    from prehensile.planning.jplus_rrt import JPlusRRTSettings, jplus_rrt
-
     if planner not in POSE_PLANNERS:
         raise PrehensileError(f"planner '{planner}' does not plan to a pose; valid: {', '.join(POSE_PLANNERS)}")
     target = np.asarray(target, dtype=float)
