@@ -220,9 +220,7 @@ def _attached_objects(state: Mapping, robot: PlacedRobot, given: np.ndarray, fra
     link frames where the state's links (``given`` (L, 4, 4), before joint values were clipped
     into the limits) hold them, placed where ``robot``'s links are."""
     model, out = robot.model, []
-    entries = state.get("attached_collision_objects") or []
-    if not isinstance(entries, list):
-        raise SceneError(f"{where}.attached_collision_objects: expected a list, got {type(entries).__name__}")
+    entries = _list(state.get("attached_collision_objects"), f"{where}.attached_collision_objects")
     poses = robot.link_poses()
     for i, entry in enumerate(entries):
         at = f"{where}.attached_collision_objects[{i}]"
