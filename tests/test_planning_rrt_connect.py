@@ -17,6 +17,7 @@ from prehensile.collision.world import Obstacle
 from prehensile.errors import PrehensileError
 from prehensile.kinematics.forward import forward_kinematics
 from prehensile.model.builder import JointSpec, LinkSpec, build_model
+from prehensile.model.robot_model import Chain
 from prehensile.model.geometry import Box, Capsule, Geometry, Mesh, Sphere
 from prehensile.planning import (
     AttachedObject, ElasticBandSettings, PlanningContext, PlanResult, PlanStats, PlanStatus, RRTConnectSearch,
@@ -28,6 +29,7 @@ from prehensile.collision import sphere_kernels as SK
 from prehensile.planning.certify import CertifyReport, certified_escape, refine_after_failure
 from prehensile.planning.context import ball_joint_weights
 from prehensile.planning.cspace import IDLE_WEIGHT
+from prehensile.planning.jplus_rrt import JPlusRRTSettings, jplus_rrt
 from prehensile.planning.kernels import BLOCKED, FREE, NO_LIMIT, _scales, motion_free
 from prehensile.planning.shortcut import MAX_INSERTED, prune, shortcut_rows, waypoint_marks
 from prehensile.spatial import make_pose
@@ -41,7 +43,7 @@ FAST = RRTConnectSettings(time_budget_s=2.0)
 def _arm(axes=("z", "z", "z"), flange=False):
     """Three capsule links of 0.4, 0.4, 0.25 m along x, joints about ``axes``, on a base disc
     at the origin; a geometry-less ``tip`` 0.3 m along the last link (turned about x by a
-    fourth joint if ``flange``)."""
+    fourth joint if ``flange``); the chain ``arm`` runs from base to tip."""
     unit = {"x": [1.0, 0, 0], "y": [0, 1.0, 0], "z": [0, 0, 1.0]}
     def capsule(length):
         return Geometry(Capsule(0.04, length - 0.08), make_pose(ALONG_X, [length / 2, 0, 0]))
@@ -54,7 +56,7 @@ def _arm(axes=("z", "z", "z"), flange=False):
               JointSpec("j3", "revolute", "l2", "l3", make_pose(position=[0.4, 0, 0]), unit[axes[2]], -2.6, 2.6),
               JointSpec("jt", "revolute" if flange else "fixed", "l3", "tip", make_pose(position=[0.3, 0, 0]),
                         unit["x"], -3.0, 3.0)]
-    return build_model("arm", "test", links, joints)
+    return build_model("arm", "test", links, joints, [Chain("arm", "base", "tip", ())])
 
 
 def _box(name, center, size):
@@ -513,6 +515,26 @@ def test_path_failing_certification_is_planned_again_on_the_cover(arm):
         np.testing.assert_array_equal(mixed.link_spheres(link)[1], balls.link_spheres(link)[1])
     with pytest.raises(PrehensileError, match="covering"):
         PlanningContext(model, slot, spheres=thin, cover=thin)
+
+
+def test_jplus_rrt_plans_again_on_the_cover_after_a_failed_certification(arm):
+    """J+-RRT's path through the slot fails certification; without retries that is the answer,
+    with them a new tree on the links' covering balls reaches the same tool pose around it."""
+    model, spheres = arm
+    slot, thin, start, goal = _slot(spheres)
+    ctx = PlanningContext(model, slot, spheres=thin, cover=spheres)
+    target = forward_kinematics(model, goal)[model.link_index("tip")]
+    settings = JPlusRRTSettings(time_budget_s=5.0, certify_retries=0)
+    through = jplus_rrt(ctx, start, target[None], settings, rng=5)
+    assert through.status is PlanStatus.CERTIFICATION_FAILED and not through.info["certify"].ok
+    assert through.info["attempts"] == 1 and through.path.shape == (0, 3)
+    around = jplus_rrt(ctx, start, target[None], dataclasses.replace(settings, certify_retries=3), rng=5)
+    assert around.status is PlanStatus.SUCCESS and around.info["attempts"] >= 2 and around.info["refined"]
+    np.testing.assert_array_equal(around.path[0], start)
+    assert around.info["certify"].ok and _exact_free_path(ctx, around.path)
+    reached = forward_kinematics(model, around.path[-1])[model.link_index("tip")]
+    assert np.linalg.norm(reached[:3, 3] - target[:3, 3]) <= settings.position_tolerance
+    assert around.stats.collision_checks > through.stats.collision_checks
 
 
 def test_shortcuts_and_bands_of_a_certified_path_stay_certified_on_thin_balls(arm, caplog):

@@ -36,7 +36,7 @@ from prehensile.errors import PrehensileError
 from prehensile.ik import kernels as ik_kernels
 from prehensile.ik.hand_pair import HandPair
 from prehensile.ik.jacobian import ChainSolver, JacobianIKSettings
-from prehensile.planning.certify import certified_escape, certify_path
+from prehensile.planning.certify import certified_escape, certify_path, refine_after_failure
 from prehensile.planning.context import PlanningContext
 from prehensile.planning.finish import finish_path
 from prehensile.planning.result import PlanResult, PlanStats, PlanStatus
@@ -71,6 +71,10 @@ class JPlusRRTSettings:
         max_nodes: tree capacity.
         shortcut_iterations: random shortcuts of the found path.
         certify: certify the path with the exact geometry before returning it.
+        certify_retries: searches started over (a new tree) after a path failed certification,
+            as in :class:`~prehensile.planning.rrt_connect.RRTConnectSettings`: with covering
+            balls on the links that collided (the last one on every link with balls), else at
+            half the resolution each, before giving up with CERTIFICATION_FAILED.
         escape: a start within the limits that only the conservative balls reject leaves
             along a short straight motion certified on the exact geometry (as in
             :class:`~prehensile.planning.rrt_connect.RRTConnectSettings`), searched until the
@@ -95,6 +99,7 @@ class JPlusRRTSettings:
     max_nodes: int = 100_000
     shortcut_iterations: int = 100
     certify: bool = True
+    certify_retries: int = 3
     escape: bool = True
     exact_approach: float = 0.05
 
@@ -103,7 +108,8 @@ class JPlusRRTSettings:
                     "rotation_weight")
         check_fields(self, time_budget_s=FINITE_POSITIVE, **dict.fromkeys(positive, POSITIVE),
                      damping=FINITE_NON_NEGATIVE, goal_probability=UNIT_INTERVAL, max_goal_steps=at_least(1),
-                     max_nodes=at_least(2), shortcut_iterations=at_least(0), exact_approach=NON_NEGATIVE)
+                     max_nodes=at_least(2), shortcut_iterations=at_least(0), certify_retries=at_least(0),
+                     exact_approach=NON_NEGATIVE)
 
 
 class _Tree:
@@ -231,7 +237,9 @@ def jplus_rrt(ctx: PlanningContext, q_start: np.ndarray, target_poses: np.ndarra
             different tips need a name).
 
     Returns:
-        :class:`PlanResult`; ``goal_index`` is the grasp reached.
+        :class:`PlanResult`; ``goal_index`` is the grasp reached; ``info`` holds ``attempts``,
+        ``refined`` (links planned on covering balls, see ``settings.certify_retries``) and,
+        if certified, ``certify`` (the last :class:`~prehensile.planning.certify.CertifyReport`).
     """
     goals = _PoseGoals(_chain_solver(ctx, chain, T_tip_tcp), target_poses, settings)
     return _grow(ctx, q_start, goals, settings, rng)
@@ -255,7 +263,8 @@ def regrasp_jplus_rrt(ctx: PlanningContext, q_start: np.ndarray, arms: Sequence[
     Returns:
         :class:`PlanResult`; ``goal_index`` indexes (object pose, grasp a, grasp b) in C order,
         ``info`` holds ``grasps`` (i, j), ``object_index`` and ``T_world_object`` (4, 4) (for a
-        free object: ``T_world_tcp_b @ inverse(g_b)`` at the last configuration).
+        free object: ``T_world_tcp_b @ inverse(g_b)`` at the last configuration), and those
+        of :func:`jplus_rrt`.
     """
     s = settings
     pair = HandPair(arms, free, JacobianIKSettings(method="pinv", max_step_position=s.max_step_position,
@@ -266,29 +275,58 @@ def regrasp_jplus_rrt(ctx: PlanningContext, q_start: np.ndarray, arms: Sequence[
 
 def _grow(ctx: PlanningContext, q_start: np.ndarray, goals, s: JPlusRRTSettings,
           rng: np.random.Generator | int | None) -> PlanResult:
-    """The J+-RRT loop (Alg. 13) over ``goals`` (:class:`_PoseGoals` or :class:`_GraspPairGoals`)."""
+    """The J+-RRT loop (Alg. 13) over ``goals`` (:class:`_PoseGoals` or :class:`_GraspPairGoals`),
+    started over with a new tree after a path fails the exact certification, as
+    :class:`~prehensile.planning.rrt_connect.RRTConnectSearch` does
+    (:func:`~prehensile.planning.certify.refine_after_failure`)."""
     ctx.warm_up(s.certify or s.escape)
     start_time = clock()
     rng = planner_rng(rng)
     q_start = ctx.model.check_one(q_start, "q_start").copy()
-    counted = int(ctx.counters[0])
-    valid, escape = bool(ctx.is_valid(q_start)), None
     deadline = start_time + s.time_budget_s
+    context, links, res, report = ctx, frozenset(), ctx.resolution, None
+    iterations, checks, simplify_time, certify_time = 0, 0, 0.0, 0.0
+    for attempt in range(s.certify_retries + 1):
+        counted = int(context.counters[0])
+        status, tree, reached, g, tried = _search(context, q_start, goals, s, rng, deadline, res)
+        iterations += tried
+        if status is PlanStatus.SUCCESS:
+            status, path, simplify, certify, report = finish_path(context, tree.path_to(reached), rng,
+                                                                  s.shortcut_iterations, s.certify, res)
+            simplify_time, certify_time = simplify_time + simplify, certify_time + certify
+        checks += int(context.counters[0]) - counted
+        if status is not PlanStatus.CERTIFICATION_FAILED or attempt == s.certify_retries or clock() >= deadline:
+            break
+        context, links, res = refine_after_failure(ctx, context, links, res, report,
+                                                   last=attempt + 1 == s.certify_retries)
+    stats = PlanStats(iterations, 0 if tree is None else tree.count, checks, 0,
+                      clock() - start_time - simplify_time - certify_time, simplify_time, certify_time)
+    info = {"attempts": attempt + 1, "refined": tuple(sorted(links))} | ({} if report is None else {"certify": report})
+    if status is PlanStatus.SUCCESS:
+        return PlanResult(status, path, stats, g, info=info | goals.info(tree.q[reached], g))
+    return ctx.explain(PlanResult(status, np.zeros((0, ctx.model.dof)), stats, info=info), q_start)
+
+
+def _search(ctx: PlanningContext, q_start: np.ndarray, goals, s: JPlusRRTSettings, rng: np.random.Generator,
+            deadline: float, res: float) -> tuple[PlanStatus, _Tree | None, int, int, int]:
+    """Grow a tree from q_start until a node reaches a goal or ``deadline`` (s,
+    :func:`~prehensile.clock.clock`), motions checked at ``res`` (m): (SUCCESS, TIMEOUT or
+    INVALID_START, the tree, the node that reached a goal, that goal, iterations)."""
+    valid, escape = bool(ctx.is_valid(q_start)), None
     if not valid and s.escape and ctx.model.within_limits(q_start):  # random directions until the deadline
         escape = certified_escape(ctx, q_start, q_start, rng, 0.5 * ctx.resolution, attempts=None, deadline=deadline)
     if not valid and escape is None:
-        status = PlanStatus.TIMEOUT if clock() >= deadline else PlanStatus.INVALID_START
-        return ctx.explain(_result(status, ctx, 0, 0, counted, start_time), q_start)
+        return PlanStatus.TIMEOUT if clock() >= deadline else PlanStatus.INVALID_START, None, -1, -1, 0
     tree = _Tree(q_start, goals.tools(q_start), s.max_nodes)
     if escape is not None:
         tree.add(escape, 0, goals.tools(escape))
         tree.first = 1
     iterations, bounds = 0, ctx.space.sampling_bounds(q_start[ctx.space.indices])
     try:
-        while clock() - start_time < s.time_budget_s:
+        while clock() < deadline:
             iterations += 1
             if rng.random() >= s.goal_probability:
-                _extend_randomly(ctx, tree, goals, s.step, bounds, rng)
+                _extend_randomly(ctx, tree, goals, s.step, bounds, rng, res)
                 continue
             g = int(rng.integers(goals.count))
             d = goals.distance(tree.tools[:tree.count], g)
@@ -297,19 +335,18 @@ def _grow(ctx: PlanningContext, q_start: np.ndarray, goals, s: JPlusRRTSettings,
             node = int(np.argmin(d))
             if not np.isfinite(d[node]):
                 continue
-            reached = _extend_to_goal(ctx, tree, node, g, goals, s)
+            reached = _extend_to_goal(ctx, tree, node, g, goals, s, res)
             if reached >= 0:
-                return _finish(ctx, tree.path_to(reached), rng, s, iterations, tree.count, counted, start_time, g,
-                               goals.info(tree.q[reached], g))
+                return PlanStatus.SUCCESS, tree, reached, g, iterations
     except IndexError:  # the tree is full: report like a timeout
         pass
-    return _result(PlanStatus.TIMEOUT, ctx, iterations, tree.count, counted, start_time)
+    return PlanStatus.TIMEOUT, tree, -1, -1, iterations
 
 
 def _extend_randomly(ctx: PlanningContext, tree: _Tree, goals, step: float, bounds: tuple[np.ndarray, np.ndarray],
-                     rng: np.random.Generator) -> None:
+                     rng: np.random.Generator, res: float) -> None:
     """One RRT step from the node nearest to a uniform sample within ``bounds`` (lower, upper) (n,)
-    (workspace-weighted metric)."""
+    (workspace-weighted metric), checked at ``res`` (m)."""
     idx, w = ctx.space.indices, ctx.space.weights
     sample = rng.uniform(*bounds)
     near = tree.first + int(np.argmin(np.abs(tree.q[tree.first:tree.count][:, idx] - sample) @ w))
@@ -319,11 +356,12 @@ def _extend_randomly(ctx: PlanningContext, tree: _Tree, goals, step: float, boun
         return
     q_new = tree.q[near].copy()
     q_new[idx] += delta * min(1.0, step / length)
-    if ctx.check_motion(tree.q[near], q_new):
+    if ctx.check_motion(tree.q[near], q_new, res):
         tree.add(q_new, near, goals.tools(q_new))
 
 
-def _extend_to_goal(ctx: PlanningContext, tree: _Tree, node: int, g: int, goals, s: JPlusRRTSettings) -> int:
+def _extend_to_goal(ctx: PlanningContext, tree: _Tree, node: int, g: int, goals, s: JPlusRRTSettings,
+                    res: float) -> int:
     """ExtendToGoal (Alg. 14): Jacobian steps from ``node`` toward goal g, each new
     configuration a tree node; the node reaching it, or -1 when a step is blocked (collision,
     or an error that keeps growing) or the steps run out. A step after which the error grew
@@ -331,7 +369,7 @@ def _extend_to_goal(ctx: PlanningContext, tree: _Tree, node: int, g: int, goals,
     half as long from the node before it, up to :data:`_HALVINGS` times. Steps stay within
     the joint limits (a goal whose every IK solution has a joint at its limit stays
     reachable). Within ``s.exact_approach`` of the goal a step the balls block may pass on the
-    exact geometry."""
+    exact geometry. Motions are checked at ``res`` (m)."""
     space, last, halvings = ctx.space, np.inf, 0
     for _ in range(s.max_goal_steps):
         q_new, pos_err, rot_err = goals.step(tree.q[node], g)
@@ -347,7 +385,7 @@ def _extend_to_goal(ctx: PlanningContext, tree: _Tree, node: int, g: int, goals,
         else:
             tree.mark(node, g)
             return -1
-        if not _step_free(ctx, tree.q[base], q_new, pos_err <= s.exact_approach):
+        if not _step_free(ctx, tree.q[base], q_new, res, pos_err <= s.exact_approach):
             tree.mark(base, g)
             return -1
         node = tree.add(q_new, base, goals.tools(q_new))
@@ -375,10 +413,10 @@ def _limited_step(jac: np.ndarray, err: np.ndarray, q: np.ndarray, lower: np.nda
     return dq
 
 
-def _step_free(ctx: PlanningContext, q: np.ndarray, q_new: np.ndarray, exact: bool) -> bool:
-    """The motion q -> q_new (dof,) is free for the balls, or (if ``exact``) certified on the
-    exact geometry where they block it."""
-    return bool(ctx.check_motion(q, q_new)) or exact and certify_path(ctx, np.stack((q, q_new))).ok
+def _step_free(ctx: PlanningContext, q: np.ndarray, q_new: np.ndarray, res: float, exact: bool) -> bool:
+    """The motion q -> q_new (dof,) is free for the balls (checked at ``res`` m), or (if
+    ``exact``) certified on the exact geometry where they block it."""
+    return bool(ctx.check_motion(q, q_new, res)) or exact and certify_path(ctx, np.stack((q, q_new))).ok
 
 
 def _chain_solver(ctx: PlanningContext, chain: str | None, T_tip_tcp: np.ndarray | None) -> ChainSolver:
@@ -407,17 +445,3 @@ def _se3_distance(poses: np.ndarray, targets: np.ndarray, rotation_weight: float
     targets = np.broadcast_to(targets, poses.shape)
     cos = np.clip((np.einsum("nij,nij->n", poses[:, :3, :3], targets[:, :3, :3]) - 1.0) / 2.0, -1.0, 1.0)
     return np.linalg.norm(poses[:, :3, 3] - targets[:, :3, 3], axis=1) + rotation_weight * np.arccos(cos)
-
-
-def _finish(ctx, path, rng, s, iterations, nodes, counted, start_time, goal_index, info) -> PlanResult:
-    plan_time = clock() - start_time
-    status, path, simplify_time, certify_time = finish_path(ctx, path, rng, s.shortcut_iterations, s.certify)
-    stats = PlanStats(iterations, nodes, int(ctx.counters[0]) - counted, 0, plan_time, simplify_time, certify_time)
-    if status is not PlanStatus.SUCCESS:
-        return PlanResult(status, np.zeros((0, ctx.model.dof)), stats)
-    return PlanResult(status, path, stats, goal_index, info=info)
-
-
-def _result(status, ctx, iterations, nodes, counted, start_time) -> PlanResult:
-    stats = PlanStats(iterations, nodes, int(ctx.counters[0]) - counted, 0, clock() - start_time)
-    return PlanResult(status, np.zeros((0, ctx.model.dof)), stats)
