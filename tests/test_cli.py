@@ -99,7 +99,11 @@ def test_fk_bundled_one_link_neutral_and_negative_values():
 
 @pytest.mark.parametrize("args, fragment", [
     (("fk", URDF, "--q", "0.1"), "has 2 joints"),
-    (("fk", URDF, "--q", "0.1", "abc"), "expected numbers"),
+    (("fk", URDF, "--q", "0.1", "abc"), "--q: expected numbers, got 'abc'"),
+    (("plan", "--goal", "0.1", "0.2", "plan_demo"), "--goal: expected numbers, got 'plan_demo'; if it is an argument "
+     "of the command, give it before --goal"),
+    (("plan", "--chain", "arm", "--target", "0.3", "0", "0.5", "plan_demo"),
+     "--target: expected numbers, got 'plan_demo'"),
     (("fk", URDF, "--link", "nope"), "has no link 'nope'"),
     (("robot", "info", "r2d2"), "r2d2"),
     (("fk", URDF, "0.1", "0.2"), "unexpected arguments 0.1 0.2; give joint values after --q"),

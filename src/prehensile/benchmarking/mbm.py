@@ -227,32 +227,42 @@ def goal_tip(model: RobotModel, problem: MBMProblem, planner: str) -> str | None
     return model.chain(group).tip_link
 
 
+def _unplanned_outside(model: RobotModel, q_start: np.ndarray, joints: Sequence[str]) -> np.ndarray:
+    """Indices of the joints not planned whose start value q_start (dof,) lies outside their limits."""
+    fixed = np.array([name not in joints for name in model.joint_names])
+    return np.flatnonzero(fixed & ((q_start < model.lower) | (q_start > model.upper)))
+
+
 def _clip_unplanned(model: RobotModel, problem: MBMProblem, joints: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
     """The request's (start, goal) (dof,) with the joints not planned clipped into their limits
-    (a warning names them; MBM's requests hold Panda finger values beyond some models' limits)."""
+    (MBM's requests hold Panda finger values beyond some models' limits; :func:`check_problems`
+    names them)."""
     q_start = problem.request.start_configuration(model)
     q_goal = problem.request.goal_configuration(model)
-    fixed = np.array([name not in joints for name in model.joint_names])
-    outside = np.flatnonzero(fixed & ((q_start < model.lower) | (q_start > model.upper)))
-    if len(outside):
-        log.warning("%s: start_state: %s outside the joint limits and not planned, clipped into them",
-                    problem.request.source,
-                    ", ".join(f"{model.joint_names[i]} = {q_start[i]:.6g}" for i in outside))
-        q_start[outside] = q_goal[outside] = np.clip(q_start[outside], model.lower[outside], model.upper[outside])
+    outside = _unplanned_outside(model, q_start, joints)
+    q_start[outside] = q_goal[outside] = np.clip(q_start[outside], model.lower[outside], model.upper[outside])
     return q_start, q_goal
 
 
 def check_problems(model: RobotModel, problems: Sequence[MBMProblem], planner: str = "rrt_connect") -> None:
     """Check every problem's planned joints, start and goal (and for a pose planner its
-    group's tip) before any is planned.
+    group's tip) before any is planned; a warning names the joints not planned whose start lies
+    outside their limits (:class:`PreparedProblem` clips them into them).
 
     Raises:
         PrehensileError: naming the first request at fault (see :func:`check_request`, :func:`goal_tip`).
     """
     for problem in problems:
-        check_request(model, problem, planned_joints(model, problem))
+        joints = planned_joints(model, problem)
+        check_request(model, problem, joints)
         goal_tip(model, problem, planner)
         problem.request.goal_configuration(model)  # and the start it builds on
+        q_start = problem.request.start_configuration(model)
+        outside = _unplanned_outside(model, q_start, joints)
+        if len(outside):
+            log.warning("%s: start_state: %s outside the joint limits and not planned, clipped into them",
+                        problem.request.source,
+                        ", ".join(f"{model.joint_names[i]} = {q_start[i]:.6g}" for i in outside))
 
 
 def problem_seed(settings: MBMSettings, problem: MBMProblem) -> list[int]:

@@ -49,12 +49,18 @@ from prehensile.planning.result import PlanResult, PlanStats, PlanStatus
 _SEED: list[int] = []  # the process-wide OMPL seed once set
 
 
+OMPL_LONGEST_BUDGET_S = 1e9
+"""s: OMPL's deadline (the clock's nanoseconds since 1970 plus the budget, 64-bit) overflows
+for budgets above about 7e9 s, and the solve then ends at once."""
+
+
 @dataclass(frozen=True)
 class OMPLSettings:
     """Settings of the OMPL peer.
 
     Attributes:
-        time_budget_s: search time limit (s); simplification is not limited.
+        time_budget_s: search time limit (s), at most :data:`OMPL_LONGEST_BUDGET_S` of it
+            used; simplification is not limited.
         resolution: largest surface displacement between two checked states of a motion (m),
             the meaning our planner gives it; converted to OMPL's Euclidean segment length.
         simplify: run OMPL's default simplifier on a found path.
@@ -149,7 +155,7 @@ def ompl_rrt_connect(space: ConfigurationSpace, checker: SphereChecker, q_start:
     setup.setPlanner(og.RRTConnect(info))
     setup.setup()
     t0 = time.perf_counter()
-    status = setup.solve(float(settings.time_budget_s))
+    status = setup.solve(min(float(settings.time_budget_s), OMPL_LONGEST_BUDGET_S))
     t1 = time.perf_counter()
     solved = status == ob.PlannerStatus.EXACT_SOLUTION and setup.haveExactSolutionPath()
     if solved and settings.simplify:

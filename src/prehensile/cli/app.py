@@ -49,12 +49,17 @@ def check_seed(seed: int) -> None:
 def extra_values(args: list[str], given: list[str] | None, option: str, what: str) -> list[str]:
     """All values of the many-valued ``option``: typer binds the first (``given``) and hands the
     rest on as the command's extra ``args``. An extra argument that is an option, not a number,
-    is an unknown option."""
+    is an unknown option; any other that is not a number was meant for the command (its
+    positional argument given after the values)."""
     unknown = [a for a in args if a.startswith("-") and not _is_number(a)]
     if unknown:
         raise PrehensileError(f"no such option: {unknown[0]} (see --help)")
     if args and not given:
         raise PrehensileError(f"unexpected arguments {' '.join(args)}; give {what} after {option}")
+    words = [a for a in args if not _is_number(a)]
+    if words:
+        raise PrehensileError(f"{option}: expected numbers, got '{words[0]}'; if it is an argument of the command, "
+                              f"give it before {option}, whose values end the command line")
     return list(given or []) + list(args)
 
 

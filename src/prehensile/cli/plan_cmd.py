@@ -251,7 +251,7 @@ def plan(
 
     if goal and target:
         raise PrehensileError("give either --goal (a configuration) or --target (a tool pose), not both")
-    values = extra_values(ctx.args, goal or target, "--goal", "goal values")
+    values = extra_values(ctx.args, goal or target, "--target" if target else "--goal", "goal values")
     planner = planner or (POSE_PLANNERS[0] if target else CONFIGURATION_PLANNERS[0])
     if planner not in PLANNERS:
         raise PrehensileError(f"--planner: unknown planner '{planner}'; valid: {', '.join(PLANNERS)}")
