@@ -165,6 +165,98 @@ def test_pose_planners_reach_the_goal_pose(tmp_path, planner, position_tolerance
     assert overall["goal_error_m_max"] == max(run["ours"]["goal_error_m"] for run in report["runs"])
 
 
+def _pose_goal_requests(folder: Path) -> None:
+    """Turn the ARMAR-III requests into pose goals where their goal configurations put TCP_R:
+    request 1 a point 5 cm along TCP_R's z axis within a 1 mm sphere, the orientation within
+    0.01 rad (XYZ Euler angles), in the frame of the arm's base link; request 2 the TCP's
+    position alone in a 2 cm box (world frame)."""
+    import yaml
+    from scipy.spatial.transform import Rotation
+
+    from prehensile import robots
+    from prehensile.kinematics import link_pose
+    from prehensile.spatial import invert
+
+    model = robots.load("armar3")
+    arm = model.chain_q_indices("RightArm")
+    offset = np.array([0.0, 0.0, 0.05])
+    for k, (_, start, goal) in enumerate(ARMAR_PROBLEMS, 1):
+        path = folder / f"request{k:04d}.yaml"
+        request = yaml.safe_load(path.read_text())
+        q_start, q_goal = model.neutral_configuration(), model.neutral_configuration()
+        q_start[arm], q_goal[arm] = start, goal
+        T_world_tcp = link_pose(model, q_goal, "TCP_R")
+        T_world_base = link_pose(model, q_start, "Right_Arm_Base")
+        if k == 1:
+            T_base_tcp = invert(T_world_base) @ T_world_tcp
+            point = T_base_tcp[:3, :3] @ offset + T_base_tcp[:3, 3]
+            header = {"frame_id": "Right_Arm_Base"}
+            constraints = {
+                "position_constraints": [{
+                    "header": header, "link_name": "TCP_R", "target_point_offset": dict(zip("xyz", offset.tolist())),
+                    "constraint_region": {"primitives": [{"type": 2, "dimensions": [0.001]}],
+                                          "primitive_poses": [{"position": point.tolist(),
+                                                               "orientation": [0, 0, 0, 1]}]}, "weight": 1.0}],
+                "orientation_constraints": [{
+                    "header": header, "link_name": "TCP_R",
+                    "orientation": Rotation.from_matrix(T_base_tcp[:3, :3]).as_quat().tolist(),
+                    "absolute_x_axis_tolerance": 0.01, "absolute_y_axis_tolerance": 0.01,
+                    "absolute_z_axis_tolerance": 0.01, "parameterization": 0, "weight": 1.0}]}
+        else:
+            constraints = {"position_constraints": [{
+                "link_name": "TCP_R",
+                "constraint_region": {"primitives": [{"type": "box", "dimensions": [0.02, 0.02, 0.02]}],
+                                      "primitive_poses": [{"position": T_world_tcp[:3, 3].tolist()}]}}]}
+        request["goal_constraints"] = [constraints]
+        path.write_text(yaml.safe_dump(request))
+
+
+def test_pose_goals_of_moveit_requests_are_met_by_the_pose_planners(tmp_path):
+    """MoveIt requests with position and orientation constraints: ik_rrt reaches both (the
+    constraints are checked at each path's end), jplus_rrt the one with an orientation;
+    rrt_connect has no configuration to plan to and is refused before planning."""
+    folder = tmp_path / "problems" / "shelf_armar3"
+    _write_armar_problems(folder)
+    _pose_goal_requests(folder)
+    out = tmp_path / "report.json"
+    for planner, limit in (("ik_rrt", "0"), ("jplus_rrt", "1")):
+        result = runner.invoke(app, ["bench", "mbm", str(tmp_path / "problems"), "--robot", "armar3", "--planner",
+                                     planner, "--budget", "5", "--limit", limit, "--json", str(out)])
+        assert result.exit_code == 0, result.output
+        report = json.loads(out.read_text())
+        overall, runs = report["overall"], [run["ours"] for run in report["runs"]]
+        assert overall["solved"] == len(runs) == (2 if limit == "0" else 1), (planner, overall)
+        assert overall["colliding_paths"] == 0 and overall["goal_unsatisfied"] == 0
+        assert all(run["goal_satisfied"] for run in runs)
+        assert runs[0]["goal_error_m"] <= 1e-3 and runs[0]["goal_error_rad"] <= 1e-2
+    assert runs[0]["goal_error_rad"] is not None
+    result = runner.invoke(app, ["bench", "mbm", str(tmp_path / "problems"), "--robot", "armar3"])
+    assert result.exit_code == 2
+    assert ("request0001.yaml: goal_constraints[0]: a pose goal (position and orientation constraints) needs a pose "
+            "planner: ik_rrt or jplus_rrt") in " ".join(result.output.split())
+    result = runner.invoke(app, ["bench", "mbm", str(tmp_path / "problems"), "--robot", "armar3", "--planner",
+                                 "jplus_rrt"])
+    assert result.exit_code == 2 and "request0002.yaml: goal_constraints[0]: jplus_rrt steps toward a full pose" in \
+        " ".join(result.output.split())
+
+
+@pytest.mark.parametrize("edit, message", [
+    (("TCP_R", "Right_Arm_Base", 1), "link_name 'Right_Arm_Base' is neither the tip 'TCP_R' of group 'RightArm' nor "
+                                     "a link below it"),
+    (("Right_Arm_Base", "Nowhere", 1), "header.frame_id 'Nowhere' is not the world or a link of robot"),
+])
+def test_pose_goals_on_links_that_cannot_serve_are_refused(tmp_path, edit, message):
+    folder = tmp_path / "problems" / "shelf_armar3"
+    _write_armar_problems(folder)
+    _pose_goal_requests(folder)
+    old, new, k = edit
+    request = folder / f"request{k:04d}.yaml"
+    request.write_text(request.read_text().replace(old, new))
+    result = runner.invoke(app, ["bench", "mbm", str(tmp_path / "problems"), "--robot", "armar3", "--planner",
+                                 "ik_rrt"])
+    assert result.exit_code == 2 and message in " ".join(result.output.split()), result.output
+
+
 def test_pose_planners_need_a_chain_and_no_ompl(tmp_path):
     _write_armar_problems(tmp_path / "problems" / "shelf_armar3")
     request = tmp_path / "problems" / "shelf_armar3" / "request0002.yaml"
@@ -298,7 +390,7 @@ def test_a_timeout_names_the_end_only_the_balls_reject(tmp_path):
 
 
 @pytest.mark.parametrize("goal, message", [
-    ({}, "has no joint_constraints; only joint goals are supported"),
+    ({}, "has no joint_constraints and no position_constraints"),
     ({"Elbow_X": 0.1}, "robot 'armar3' has no joint Elbow_X"),
     ({"Elbow_L": 0.1}, "Elbow_L not in the planned group 'RightArm'"),
     ({"Elbow_R": 0.1}, "no goal for planned joint"),

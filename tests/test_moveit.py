@@ -380,10 +380,106 @@ def test_wrongly_typed_scene_fields_are_named(scene, message):
     assert str(info.value) == message
 
 
-def test_a_request_without_joint_goals_is_refused():
-    pose_goal = {"group_name": "arm", "goal_constraints": [{"position_constraints": [{"link_name": "hand"}]}]}
-    with pytest.raises(SceneError, match="r.yaml: goal_constraints\\[0\\] has no joint_constraints; only joint goals"):
-        motion_plan_request_from_dict(pose_goal, "r.yaml")
+_REGION = {"primitives": [{"type": "sphere", "dimensions": [0.01]}],
+           "primitive_poses": [{"position": [0.4, 0.1, 0.5], "orientation": [0, 0, 0, 1]}]}
+
+
+def _orientation(**changes):
+    quaternion = Rotation.from_euler("x", 90, degrees=True).as_quat().tolist()  # (x, y, z, w)
+    return {"link_name": "hand", "orientation": quaternion, "absolute_x_axis_tolerance": 0.1,
+            "absolute_y_axis_tolerance": 0.2, "absolute_z_axis_tolerance": 0.3, **changes}
+
+
+def test_a_pose_goal_is_read_from_position_and_orientation_constraints():
+    position = {"header": {"frame_id": "world"}, "link_name": "hand", "target_point_offset": {"x": 0, "y": 0, "z": 0.1},
+                "constraint_region": _REGION}
+    request = motion_plan_request_from_dict({"group_name": "arm", "goal_constraints": [
+        {"position_constraints": [position], "orientation_constraints": [_orientation(parameterization=1)]}]}, "r.yaml")
+    goal = request.pose_goal
+    assert request.goal == {} and goal.link == "hand" and goal.frame == ""
+    np.testing.assert_allclose(goal.offset, [0, 0, 0.1])
+    (shape, T_frame_region), = goal.regions
+    assert shape == Sphere(0.01) and T_frame_region[:3, 3].tolist() == [0.4, 0.1, 0.5]
+    np.testing.assert_allclose(goal.orientation, Rotation.from_euler("x", 90, degrees=True).as_matrix(), atol=1e-12)
+    assert goal.tolerances.tolist() == [0.1, 0.2, 0.3] and goal.rotation_vector
+    alone = motion_plan_request_from_dict({"goal_constraints": [{"position_constraints": [position]}]}, "r.yaml")
+    assert alone.pose_goal.orientation is None
+
+
+@pytest.mark.parametrize("constraints, message", [
+    ({"position_constraints": [{"link_name": "hand"}]},
+     "r.yaml: goal_constraints[0].position_constraints[0].constraint_region: expected primitives and as many "
+     "primitive_poses (at least one), got 0 and 0"),
+    ({"position_constraints": [{"constraint_region": _REGION}]},
+     "r.yaml: goal_constraints[0].position_constraints[0]: missing 'link_name'"),
+    ({"orientation_constraints": [_orientation()]},
+     "r.yaml: goal_constraints[0]: one position constraint and at most one orientation constraint are supported, "
+     "got 0 and 1"),
+    ({"position_constraints": [{"link_name": "hand", "constraint_region": {**_REGION, "meshes": [{}]}}]},
+     "r.yaml: goal_constraints[0].position_constraints[0].constraint_region.meshes: mesh regions are not supported"),
+    ({"position_constraints": [{"link_name": "hand", "constraint_region": {
+        "primitives": [{"type": 4, "dimensions": [1, 1]}], "primitive_poses": [{}]}}]},
+     "r.yaml: goal_constraints[0].position_constraints[0].constraint_region.primitives[0]: cone regions are not"),
+    ({"position_constraints": [{"link_name": "hand", "constraint_region": _REGION}],
+      "orientation_constraints": [_orientation(link_name="wrist")]},
+     "r.yaml: goal_constraints[0].orientation_constraints[0]: link_name and header.frame_id must be those of the "
+     "position constraint ('hand', '')"),
+    ({"position_constraints": [{"link_name": "hand", "constraint_region": _REGION}],
+      "orientation_constraints": [_orientation(parameterization=2)]},
+     "r.yaml: goal_constraints[0].orientation_constraints[0].parameterization: expected 0 (XYZ Euler angles) or 1"),
+    ({"position_constraints": [{"link_name": "hand", "constraint_region": _REGION}],
+      "orientation_constraints": [_orientation(absolute_y_axis_tolerance=-0.1)]},
+     "r.yaml: goal_constraints[0].orientation_constraints[0]: the axis tolerances must be >= 0"),
+    ({"position_constraints": [{"link_name": "hand", "constraint_region": _REGION}],
+      "joint_constraints": [{"joint_name": "j", "position": 1.0}]},
+     "r.yaml: goal_constraints[0]: joint constraints together with position or orientation constraints are not "
+     "supported"),
+    ({"joint_constraints": []}, "r.yaml: goal_constraints[0] has no joint_constraints and no position_constraints"),
+])
+def test_bad_pose_goals_are_named(constraints, message):
+    with pytest.raises(SceneError) as info:
+        motion_plan_request_from_dict({"group_name": "arm", "goal_constraints": [constraints]}, "r.yaml")
+    assert str(info.value).startswith(message), str(info.value)
+
+
+def test_a_pose_goal_decides_as_moveit_does():
+    """The constrained point in any region (box, sphere, cylinder along z), each angle of
+    R_wanted^T R_link within its tolerance (XYZ Euler angles or rotation vector)."""
+    from prehensile.scene.pose_goal import PoseGoal
+    from prehensile.spatial import invert
+
+    T_world_frame = make_pose(Rotation.from_euler("z", 30, degrees=True).as_matrix(), [1.0, 0.0, 0.0])
+    regions = ((Box((0.2, 0.1, 0.1)), make_pose(position=[0.5, 0, 0])), (Sphere(0.05), make_pose(position=[0, 1, 0])),
+               (Cylinder(radius=0.05, length=0.4), make_pose(Rotation.from_euler("x", 90, degrees=True).as_matrix(),
+                                                                 [0, 0, 1])))
+    wanted = Rotation.from_euler("y", 20, degrees=True).as_matrix()
+    goal = PoseGoal("hand", regions, frame="base", offset=np.array([0, 0, 0.1]), orientation=wanted,
+                    tolerances=np.array([0.05, 0.1, 0.2]))
+
+    def link_at(point, rotation=np.eye(3)):
+        """T_world_link whose offset point is at ``point`` (frame), rotated by ``rotation`` from the wanted one."""
+        R = wanted @ rotation
+        return T_world_frame @ make_pose(R, np.asarray(point) - R @ goal.offset)
+
+    for point, inside in (([0.59, 0.04, -0.04], True), ([0.61, 0, 0], False), ([0, 1.03, 0.03], True),
+                          ([0, 1.04, 0.04], False), ([0.04, 0.19, 1.0], True), ([0, 0.21, 1.0], False),
+                          ([0.06, 0, 1.0], False)):
+        assert goal.satisfied(T_world_frame, link_at(point)) == inside, point
+    target = goal.target(T_world_frame)
+    assert goal.satisfied(T_world_frame, target @ invert(goal.T_link_point))
+    for angles, ok in (((0.04, 0.09, 0.19), True), ((0.06, 0, 0), False), ((0, 0.11, 0), False),
+                       ((0, 0, -0.21), False), ((-0.04, -0.09, -0.19), True)):
+        twist = Rotation.from_euler("XYZ", angles).as_matrix()  # intrinsic: Rx(a) Ry(b) Rz(c)
+        assert goal.satisfied(T_world_frame, link_at([0.5, 0, 0], twist)) == ok, angles
+        np.testing.assert_allclose(goal.angles(T_world_frame, link_at([0.5, 0, 0], twist)), angles, atol=1e-12)
+    by_vector = PoseGoal("hand", regions, orientation=wanted, tolerances=np.array([0.05, 0.1, 0.2]),
+                         rotation_vector=True, offset=goal.offset)
+    vector = np.array([0.0, 0.09, 0.19])
+    turned = link_at([0.5, 0, 0], Rotation.from_rotvec(vector).as_matrix())
+    assert by_vector.satisfied(T_world_frame, turned)
+    np.testing.assert_allclose(by_vector.angles(T_world_frame, turned), vector, atol=1e-12)
+    assert not by_vector.satisfied(T_world_frame, link_at([0.5, 0, 0], Rotation.from_rotvec([0.06, 0, 0]).as_matrix()))
+    assert PoseGoal("hand", regions).target(T_world_frame).shape == (3,)
 
 
 def test_missing_path_is_a_scene_error(tmp_path):

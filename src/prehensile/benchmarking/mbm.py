@@ -9,7 +9,12 @@ Every problem is read and its goal checked before the first is planned.
 
 Our planner is RRT-Connect to the goal configuration, or a pose planner (IK-RRT, J+-RRT) to
 the pose that configuration gives the tip link of the request's group (any configuration that
-reaches it will do). Returned paths of a pose planner are checked to end at that pose.
+reaches it will do). Returned paths of a pose planner are checked to end at that pose. A
+request whose goal is a pose (MoveIt position and orientation constraints,
+:class:`~prehensile.scene.pose_goal.PoseGoal`) needs a pose planner: it plans the constrained
+point of the link to the centre of the first region with the wanted orientation (the link must
+be the group's tip or a link below it), and every path's end is checked against the request's
+constraints (``goal_satisfied``).
 
 Measured per problem and planner:
 
@@ -48,7 +53,7 @@ from prehensile.model.robot_model import RobotModel
 from prehensile.planning.to_pose import POSE_PLANNERS
 from prehensile.scene.moveit import MBMProblem, iter_mbm_problems
 from prehensile.settings import FINITE_POSITIVE, POSITIVE, at_least, check_fields
-from prehensile.spatial import rotation_error
+from prehensile.spatial import invert, rotation_error
 
 log = logging.getLogger(__name__)
 
@@ -175,7 +180,7 @@ def check_request(model: RobotModel, problem: MBMProblem, joints: Sequence[str])
         raise PrehensileError(f"{where}: {', '.join(outside)} not in the planned group '{request.group}' "
                               f"(planned: {planned})")
     missing = [j for j in joints if j not in request.goal]
-    if missing:
+    if missing and request.pose_goal is None:
         raise PrehensileError(f"{where}: no goal for planned joint(s) {', '.join(missing)} (planned: {planned})")
     missing = [j for j in joints if j not in request.start]
     if missing:
@@ -200,8 +205,15 @@ class PreparedProblem:
         scene = problem.scene
         robot, T_world_base = (scene.robots[0].name, scene.robots[0].T_world_base) if scene.robots else (None, None)
         self.tip = goal_tip(model, problem, settings.planner)
-        # the pose planners' goal: the tip link's world pose (4, 4) at the goal configuration
+        # the pose planners' goal: the world pose (4, 4) or position (3,) of the tool frame T_tip_tcp on
+        # the tip link; for a joint goal the tip link's pose at the goal configuration
+        self.T_tip_tcp = self.T_world_frame = None
         self.target = None if self.tip is None else link_pose(model, self.q_goal, self.tip, T_world_base=T_world_base)
+        pose_goal = problem.request.pose_goal
+        if pose_goal is not None:
+            self.T_world_frame, self.T_tip_tcp = pose_goal_frames(model, problem, self.tip, self.q_start,
+                                                                  T_world_base)
+            self.target, self.q_goal = pose_goal.target(self.T_world_frame), None
         self.ctx = PlanningContext(model, scene.collision_obstacles(robot), joints=joints, q_ref=self.q_start,
                                    T_world_base=T_world_base, spheres=spheres[0], cover=spheres[1],
                                    attached=scene.attached_objects(robot), resolution=settings.resolution,
@@ -215,16 +227,45 @@ def goal_tip(model: RobotModel, problem: MBMProblem, planner: str) -> str | None
     for ``rrt_connect``.
 
     Raises:
-        PrehensileError: the request's group is not a chain of the model.
+        PrehensileError: the request's group is not a chain of the model; a pose goal for
+            ``rrt_connect``, or one without orientation for ``jplus_rrt``.
     """
+    request = problem.request
+    if request.pose_goal is not None and planner not in POSE_PLANNERS:
+        raise PrehensileError(f"{request.source}: goal_constraints[0]: a pose goal (position and orientation "
+                              f"constraints) needs a pose planner: {' or '.join(POSE_PLANNERS)}")
     if planner not in POSE_PLANNERS:
         return None
-    group = problem.request.group
+    if request.pose_goal is not None and request.pose_goal.orientation is None and planner == "jplus_rrt":
+        raise PrehensileError(f"{request.source}: goal_constraints[0]: jplus_rrt steps toward a full pose, and the "
+                              "goal has no orientation constraint; use ik_rrt")
+    group = request.group
     if group not in model.chains:
-        raise PrehensileError(f"{problem.request.source}: group: {planner} plans to the pose of a chain's tip, and "
+        raise PrehensileError(f"{request.source}: group: {planner} plans to the pose of a chain's tip, and "
                               f"'{group}' is not a chain of robot '{model.name}' (chains: "
                               f"{', '.join(model.chains) or '(none)'}{'' if model.srdf_source else '; give the SRDF'})")
     return model.chain(group).tip_link
+
+
+def pose_goal_frames(model: RobotModel, problem: MBMProblem, tip: str, q_start: np.ndarray,
+                     T_world_base: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+    """(T_world_frame, T_tip_tcp) (4, 4) of a request's pose goal: the pose of its frame with
+    the robot at q_start (dof,), and its constrained point's frame on the group's tip link.
+
+    Raises:
+        PrehensileError: a frame or link the robot does not have, or a constrained link that
+            the group's joints move relative to its tip.
+    """
+    goal, where = problem.request.pose_goal, f"{problem.request.source}: goal_constraints[0]"
+    for name, what in ((goal.frame, "header.frame_id"), (goal.link, "link_name")):
+        if name and name not in model.link_names:
+            raise PrehensileError(f"{where}: {what} '{name}' is not the world or a link of robot '{model.name}'")
+    T_world_frame = link_pose(model, q_start, goal.frame, T_world_base=T_world_base) if goal.frame else np.eye(4)
+    if model.link_index(tip) not in model.path_to_root(goal.link):
+        raise PrehensileError(f"{where}: link_name '{goal.link}' is neither the tip '{tip}' of group "
+                              f"'{problem.request.group}' nor a link below it")
+    T_tip_link = invert(link_pose(model, q_start, tip)) @ link_pose(model, q_start, goal.link)
+    return T_world_frame, T_tip_link @ goal.T_link_point
 
 
 def _unplanned_outside(model: RobotModel, q_start: np.ndarray, joints: Sequence[str]) -> np.ndarray:
@@ -255,9 +296,12 @@ def check_problems(model: RobotModel, problems: Sequence[MBMProblem], planner: s
     for problem in problems:
         joints = planned_joints(model, problem)
         check_request(model, problem, joints)
-        goal_tip(model, problem, planner)
+        tip = goal_tip(model, problem, planner)
         problem.request.goal_configuration(model)  # and the start it builds on
         q_start = problem.request.start_configuration(model)
+        if problem.request.pose_goal is not None:
+            robots = problem.scene.robots
+            pose_goal_frames(model, problem, tip, q_start, robots[0].T_world_base if robots else None)
         outside = _unplanned_outside(model, q_start, joints)
         if len(outside):
             log.warning("%s: start_state: %s outside the joint limits and not planned, clipped into them",
@@ -287,7 +331,7 @@ def _plan(prepared: PreparedProblem, settings: MBMSettings, rng: np.random.Gener
         return rrt_connect(prepared.ctx, prepared.q_start, prepared.q_goal,
                            settings=RRTConnectSettings(time_budget_s=settings.time_budget_s), rng=rng)
     return plan_to_pose(prepared.ctx, prepared.q_start, prepared.target, prepared.problem.request.group,
-                        settings.planner, settings.time_budget_s, rng)
+                        settings.planner, settings.time_budget_s, rng, prepared.T_tip_tcp)
 
 
 def _ompl(prepared: PreparedProblem, settings: MBMSettings) -> dict:
@@ -309,6 +353,7 @@ def _record(prepared: PreparedProblem, result, time_s: float, settings: MBMSetti
         "collision_checks": result.stats.collision_checks,
         "waypoints": len(result.path), "path_length": None, "exact_colliding": None,
         "goal_error_m": None, "goal_error_rad": None,  # pose planners: the path's end against the goal pose
+        "goal_satisfied": None,  # pose goals: the path's end meets the request's constraints
         "attempts": result.info.get("attempts", 1),  # > 1: planned again after a failed certification
     }
     reason = prepared.ctx.explain(result, prepared.q_start, prepared.q_goal).info.get("reason")  # OMPL's has none
@@ -319,11 +364,25 @@ def _record(prepared: PreparedProblem, result, time_s: float, settings: MBMSetti
         record["exact_colliding"] = path_collides_exactly(space, prepared.ctx.exact, result.path,
                                                           settings.verify_resolution)
         if prepared.target is not None:
-            ctx = prepared.ctx
-            reached = link_pose(ctx.model, result.path[-1], prepared.tip, T_world_base=ctx.T_world_base)
-            record["goal_error_m"] = float(np.linalg.norm(reached[:3, 3] - prepared.target[:3, 3]))
-            record["goal_error_rad"] = float(np.linalg.norm(rotation_error(prepared.target[:3, :3], reached[:3, :3])))
+            record.update(_goal_errors(prepared, result.path[-1]))
     return record
+
+
+def _goal_errors(prepared: PreparedProblem, q: np.ndarray) -> dict:
+    """How far the tool frame at q (dof,) is from a pose planner's target (m, rad; None: a
+    position target), and whether q meets the request's pose goal (None: a joint goal)."""
+    model, target, T_world_base = prepared.ctx.model, prepared.target, prepared.ctx.T_world_base
+    reached = link_pose(model, q, prepared.tip, prepared.T_tip_tcp, T_world_base=T_world_base)
+    if target.shape == (3,):
+        errors = {"goal_error_m": float(np.linalg.norm(reached[:3, 3] - target)), "goal_error_rad": None}
+    else:
+        errors = {"goal_error_m": float(np.linalg.norm(reached[:3, 3] - target[:3, 3])),
+                  "goal_error_rad": float(np.linalg.norm(rotation_error(target[:3, :3], reached[:3, :3])))}
+    pose_goal = prepared.problem.request.pose_goal
+    if pose_goal is not None:
+        T_world_link = link_pose(model, q, pose_goal.link, T_world_base=T_world_base)
+        errors["goal_satisfied"] = pose_goal.satisfied(prepared.T_world_frame, T_world_link)
+    return errors
 
 
 def summarize(records: Sequence[dict]) -> dict:
@@ -347,6 +406,9 @@ def summarize(records: Sequence[dict]) -> dict:
         "collision_checks_median": float(np.median([r["collision_checks"] for r in solved])) if solved else None,
         **{f"{key}_max": max((r[key] for r in solved if r[key] is not None), default=None)
            for key in ("goal_error_m", "goal_error_rad")},
+        # pose goals: solved problems whose path ends outside the request's constraints (None: joint goals)
+        "goal_unsatisfied": sum(r.get("goal_satisfied") is False for r in solved)
+        if any(r.get("goal_satisfied") is not None for r in solved) else None,
         "planned_again": sum(r["attempts"] > 1 for r in records),
         "statuses": statuses,
     }

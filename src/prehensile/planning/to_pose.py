@@ -15,9 +15,11 @@ POSE_PLANNERS = ("ik_rrt", "jplus_rrt")
 
 
 def plan_to_pose(ctx: PlanningContext, q_start: np.ndarray, target: np.ndarray, chain: str, planner: str = "ik_rrt",
-                 time_budget_s: float = 1.0, rng: np.random.Generator | int | None = None) -> PlanResult:
-    """Plan from ``q_start`` (dof,) to any configuration that puts the tip link of ``chain`` at
-    the world pose ``target`` (4, 4), or (ik_rrt only) at the world position ``target`` (3,) (m).
+                 time_budget_s: float = 1.0, rng: np.random.Generator | int | None = None,
+                 T_tip_tcp: np.ndarray | None = None) -> PlanResult:
+    """Plan from ``q_start`` (dof,) to any configuration that puts the tool frame (the tip link
+    of ``chain`` times ``T_tip_tcp`` (4, 4), default the tip link itself) at the world pose
+    ``target`` (4, 4), or (ik_rrt only) its origin at the world position ``target`` (3,) (m).
 
     Args:
         ctx: planning context that plans the chain's joints.
@@ -38,8 +40,9 @@ def plan_to_pose(ctx: PlanningContext, q_start: np.ndarray, target: np.ndarray, 
         if target.shape == (3,):
             raise PrehensileError("jplus_rrt steps toward a full pose: give a (4, 4) target, or plan to a position "
                                   "with ik_rrt")
-        return jplus_rrt(ctx, q_start, target[None], JPlusRRTSettings(time_budget_s=time_budget_s), rng, chain=chain)
-    solver = ChainSolver(ctx.model, chain, T_world_root=ctx.T_world_base,
+        return jplus_rrt(ctx, q_start, target[None], JPlusRRTSettings(time_budget_s=time_budget_s), rng,
+                         T_tip_tcp=T_tip_tcp, chain=chain)
+    solver = ChainSolver(ctx.model, chain, T_tip_tcp=T_tip_tcp, T_world_root=ctx.T_world_base,
                          settings=JacobianIKSettings(position_only=target.shape == (3,)))
     return ik_rrt(ctx, q_start, grasp_sampler(ctx, solver, target[None], q_start),
                   IKRRTSettings(time_budget_s=time_budget_s), rng)

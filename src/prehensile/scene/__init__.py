@@ -9,10 +9,11 @@ from prehensile.scene.moveit import (
     load_motion_plan_request,
     load_moveit_scene,
 )
+from prehensile.scene.pose_goal import PoseGoal
 from prehensile.scene.scene import Body, Hold, PlacedRobot, Scene
 
 __all__ = [
-    "Body", "Hold", "MBMProblem", "MotionPlanRequest", "PlacedRobot", "Scene", "SceneCheck", "bundled_scene_path",
+    "Body", "Hold", "MBMProblem", "MotionPlanRequest", "PlacedRobot", "PoseGoal", "Scene", "SceneCheck", "bundled_scene_path",
     "bundled_scenes", "check_scene", "iter_mbm_problems", "load_motion_plan_request", "load_moveit_scene", "load_scene",
     "save_scene",
 ]

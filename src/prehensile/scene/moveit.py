@@ -23,6 +23,11 @@ MoveIt conventions and how they are mapped:
   sphere ``[radius]``, cylinder ``[height, radius]`` (note the order: height first), cone
   ``[height, radius]``. A cone becomes a **conservative cylinder** of the same height and base
   radius (it encloses the cone), logged at warning level. Prisms and planes are rejected.
+- A request's goal is ``goal_constraints[0]``: its ``joint_constraints``, or one position
+  constraint (regions: box, sphere and cylinder primitives) with at most one orientation
+  constraint on the same link and frame, read as a :class:`~prehensile.scene.pose_goal.PoseGoal`
+  (``header.frame_id`` empty, ``world`` or a link of the robot). Joint and pose constraints
+  together, mesh or cone regions and further goal constraints are refused.
 - The scene's ``allowed_collision_matrix`` is not read: the robot's own SRDF (disabled
   collision pairs) decides which of its link pairs are checked.
 - Meshes (``vertices`` / ``triangles``) become in-memory :class:`~prehensile.model.geometry.Mesh`
@@ -52,6 +57,7 @@ from prehensile.errors import SceneError, missing_file
 from prehensile.kinematics.forward import forward_kinematics
 from prehensile.model.geometry import Box, Cylinder, Geometry, Mesh, Sphere
 from prehensile.model.robot_model import RobotModel
+from prehensile.scene.pose_goal import PoseGoal
 from prehensile.scene.scene import Body, Hold, PlacedRobot, Scene, check_hold
 from prehensile.scene.schema import YamlLoader, check_mimic_values
 from prehensile.spatial import invert, make_pose, quaternion_to_matrix
@@ -65,14 +71,15 @@ _PROBLEM_FILE = re.compile(r"^(scene|request)(\d+)\.ya?ml$")
 
 @dataclass(frozen=True)
 class MotionPlanRequest:
-    """A MoveIt MotionPlanRequest reduced to joint-space start and goal.
+    """A MoveIt MotionPlanRequest reduced to a joint-space start and a joint or pose goal.
 
     Unpacks as ``group, start, goal = request``.
 
     Attributes:
         group: planning group (e.g. "panda_arm").
         start: joint name -> value (rad or m) of ``start_state.joint_state``.
-        goal: joint name -> value of ``goal_constraints[0].joint_constraints``.
+        goal: joint name -> value of ``goal_constraints[0].joint_constraints`` (empty for a pose goal).
+        pose_goal: ``goal_constraints[0]``'s position (and orientation) constraint, or None.
         planner_id: MoveIt planner name ("" if absent).
         allowed_planning_time: s (0 if absent).
         num_planning_attempts: attempts requested (1 if absent).
@@ -82,6 +89,7 @@ class MotionPlanRequest:
     group: str
     start: Mapping[str, float]
     goal: Mapping[str, float]
+    pose_goal: PoseGoal | None = None
     planner_id: str = ""
     allowed_planning_time: float = 0.0
     num_planning_attempts: int = 1
@@ -254,6 +262,7 @@ def motion_plan_request_from_dict(data: Any, source: str) -> MotionPlanRequest:
         raise SceneError(f"{source}: start_state.attached_collision_objects: not supported in a request; attach the "
                          "objects in the scene's robot_state")
     goal: dict[str, float] = {}
+    pose_goal = None
     constraints = _list(data.get("goal_constraints"), f"{source}: goal_constraints")
     if constraints:
         first = _mapping(constraints[0], f"{source}: goal_constraints[0]")
@@ -264,18 +273,81 @@ def motion_plan_request_from_dict(data: Any, source: str) -> MotionPlanRequest:
             if "joint_name" not in jc:
                 raise SceneError(f"{where}: missing 'joint_name'")
             goal[str(jc["joint_name"])] = _number(jc.get("position"), f"{where}.position")
-    if not goal:
-        raise SceneError(f"{source}: goal_constraints[0] has no joint_constraints; only joint goals are supported "
-                         "(position and orientation constraints are not)")
+        pose_goal = _pose_goal(first, f"{source}: goal_constraints[0]")
+    if not goal and pose_goal is None:
+        raise SceneError(f"{source}: goal_constraints[0] has no joint_constraints and no position_constraints")
+    if goal and pose_goal is not None:
+        raise SceneError(f"{source}: goal_constraints[0]: joint constraints together with position or orientation "
+                         "constraints are not supported; give either")
     return MotionPlanRequest(
         group=str(data.get("group_name", "")),
         start=start,
         goal=goal,
+        pose_goal=pose_goal,
         planner_id=str(data.get("planner_id", "") or ""),
         allowed_planning_time=_number(data.get("allowed_planning_time", 0.0), f"{source}: allowed_planning_time"),
         num_planning_attempts=_count(data.get("num_planning_attempts", 1) or 1, f"{source}: num_planning_attempts"),
         source=source,
     )
+
+
+def _pose_goal(constraints: Mapping, where: str) -> PoseGoal | None:
+    """The position constraint (one; and at most one orientation constraint, on the same link
+    in the same frame) of a goal's ``constraints``, or None if it has neither."""
+    positions = _list(constraints.get("position_constraints"), f"{where}.position_constraints")
+    orientations = _list(constraints.get("orientation_constraints"), f"{where}.orientation_constraints")
+    if not positions and not orientations:
+        return None
+    if len(positions) != 1 or len(orientations) > 1:
+        raise SceneError(f"{where}: one position constraint and at most one orientation constraint are supported, "
+                         f"got {len(positions)} and {len(orientations)}")
+    here = f"{where}.position_constraints[0]"
+    position = _mapping(positions[0], here)
+    link, frame = _constrained_link(position, here)
+    region = _mapping(position.get("constraint_region") or {}, f"{here}.constraint_region")
+    if region.get("meshes"):
+        raise SceneError(f"{here}.constraint_region.meshes: mesh regions are not supported; valid: box, sphere, "
+                         "cylinder primitives")
+    shapes, poses = (_list(region.get(key), f"{here}.constraint_region.{key}") for key in ("primitives",
+                                                                                           "primitive_poses"))
+    if not shapes or len(shapes) != len(poses):
+        raise SceneError(f"{here}.constraint_region: expected primitives and as many primitive_poses (at least one), "
+                         f"got {len(shapes)} and {len(poses)}")
+    regions = []
+    for k, (shape, pose) in enumerate(zip(shapes, poses)):
+        if _mapping(shape, f"{here}.constraint_region.primitives[{k}]").get("type") in (4, "cone"):
+            raise SceneError(f"{here}.constraint_region.primitives[{k}]: cone regions are not supported; valid: box, "
+                             "sphere, cylinder")
+        regions.append((_primitive(shape, f"{here}.constraint_region.primitives[{k}]"),
+                        _pose(pose, f"{here}.constraint_region.primitive_poses[{k}]")))
+    goal = dict(link=link, frame=frame, regions=tuple(regions),
+                offset=_vector(position.get("target_point_offset") or [0, 0, 0], "xyz", f"{here}.target_point_offset"))
+    if orientations:
+        here = f"{where}.orientation_constraints[0]"
+        orientation = _mapping(orientations[0], here)
+        if _constrained_link(orientation, here) != (link, frame):
+            raise SceneError(f"{here}: link_name and header.frame_id must be those of the position constraint "
+                             f"({link!r}, {frame!r})")
+        tolerances = np.array([_number(orientation.get(f"absolute_{axis}_axis_tolerance"),
+                                       f"{here}.absolute_{axis}_axis_tolerance") for axis in "xyz"])
+        if np.any(tolerances < 0):
+            raise SceneError(f"{here}: the axis tolerances must be >= 0, got {tolerances.tolist()}")
+        parameterization = orientation.get("parameterization", 0)
+        if parameterization not in (0, 1):
+            raise SceneError(f"{here}.parameterization: expected 0 (XYZ Euler angles) or 1 (rotation vector), got "
+                             f"{parameterization!r}")
+        goal.update(orientation=_rigid([0, 0, 0], orientation.get("orientation"), here)[:3, :3],
+                    tolerances=tolerances, rotation_vector=parameterization == 1)
+    return PoseGoal(**goal)
+
+
+def _constrained_link(constraint: Mapping, where: str) -> tuple[str, str]:
+    """(link_name, header.frame_id with the world's names as "") of a constraint."""
+    link = str(constraint.get("link_name") or "")
+    if not link:
+        raise SceneError(f"{where}: missing 'link_name'")
+    frame = str(_mapping(constraint.get("header") or {}, f"{where}.header").get("frame_id", "") or "")
+    return link, "" if frame in _WORLD_FRAMES else frame
 
 
 def _collision_object(obj: Any, frames: Mapping[str, np.ndarray], where: str) -> Body:
