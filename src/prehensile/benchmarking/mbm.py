@@ -207,13 +207,14 @@ class PreparedProblem:
         self.tip = goal_tip(model, problem, settings.planner)
         # the pose planners' goal: the world pose (4, 4) or position (3,) of the tool frame T_tip_tcp on
         # the tip link; for a joint goal the tip link's pose at the goal configuration
-        self.T_tip_tcp = self.T_world_frame = None
-        self.target = None if self.tip is None else link_pose(model, self.q_goal, self.tip, T_world_base=T_world_base)
+        self.T_tip_tcp = self.T_world_frame = self.target = None
         pose_goal = problem.request.pose_goal
         if pose_goal is not None:
             self.T_world_frame, self.T_tip_tcp = pose_goal_frames(model, problem, self.tip, self.q_start,
                                                                   T_world_base)
             self.target, self.q_goal = pose_goal.target(self.T_world_frame), None
+        elif self.tip is not None:
+            self.target = link_pose(model, self.q_goal, self.tip, T_world_base=T_world_base)
         self.ctx = PlanningContext(model, scene.collision_obstacles(robot), joints=joints, q_ref=self.q_start,
                                    T_world_base=T_world_base, spheres=spheres[0], cover=spheres[1],
                                    attached=scene.attached_objects(robot), resolution=settings.resolution,

@@ -13,7 +13,7 @@ from prehensile.scene.pose_goal import PoseGoal
 from prehensile.scene.scene import Body, Hold, PlacedRobot, Scene
 
 __all__ = [
-    "Body", "Hold", "MBMProblem", "MotionPlanRequest", "PlacedRobot", "PoseGoal", "Scene", "SceneCheck", "bundled_scene_path",
-    "bundled_scenes", "check_scene", "iter_mbm_problems", "load_motion_plan_request", "load_moveit_scene", "load_scene",
-    "save_scene",
+    "Body", "Hold", "MBMProblem", "MotionPlanRequest", "PlacedRobot", "PoseGoal", "Scene", "SceneCheck",
+    "bundled_scene_path", "bundled_scenes", "check_scene", "iter_mbm_problems", "load_motion_plan_request",
+    "load_moveit_scene", "load_scene", "save_scene",
 ]

@@ -27,7 +27,8 @@ MoveIt conventions and how they are mapped:
   constraint (regions: box, sphere and cylinder primitives) with at most one orientation
   constraint on the same link and frame, read as a :class:`~prehensile.scene.pose_goal.PoseGoal`
   (``header.frame_id`` empty, ``world`` or a link of the robot). Joint and pose constraints
-  together, mesh or cone regions and further goal constraints are refused.
+  together and mesh or cone regions are refused; MoveIt's alternative goals
+  (``goal_constraints[1:]``) are not read.
 - The scene's ``allowed_collision_matrix`` is not read: the robot's own SRDF (disabled
   collision pairs) decides which of its link pairs are checked.
 - Meshes (``vertices`` / ``triangles``) become in-memory :class:`~prehensile.model.geometry.Mesh`
