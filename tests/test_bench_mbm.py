@@ -228,6 +228,7 @@ def test_pose_goals_of_moveit_requests_are_met_by_the_pose_planners(tmp_path):
         assert overall["solved"] == len(runs) == (2 if limit == "0" else 1), (planner, overall)
         assert overall["colliding_paths"] == 0 and overall["goal_unsatisfied"] == 0
         assert all(run["goal_satisfied"] for run in runs)
+        assert f"pose goals: {len(runs)} of {len(runs)} paths end within" in " ".join(result.output.split())
         assert runs[0]["goal_error_m"] <= 1e-3 and runs[0]["goal_error_rad"] <= 1e-2
     assert runs[0]["goal_error_rad"] is not None
     result = runner.invoke(app, ["bench", "mbm", str(tmp_path / "problems"), "--robot", "armar3"])

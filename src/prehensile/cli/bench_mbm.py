@@ -30,8 +30,8 @@ def bench_mbm(
     ball_radius: Optional[float] = BALL_RADIUS_OPTION,
     srdf: Optional[Path] = SRDF_OPTION,
     planner: str = typer.Option("rrt_connect", "--planner", help="Our planner: rrt_connect (to the goal "
-                                 "configuration) or, to the pose that configuration gives the group's tip, ik_rrt "
-                                 "or jplus_rrt."),
+                                 "configuration) or, to the pose that configuration gives the group's tip (or to "
+                                 "a request's position and orientation constraints), ik_rrt or jplus_rrt."),
     compare_ompl: bool = typer.Option(False, "--compare-ompl", help="Also run OMPL's RRT-Connect on every problem "
                                       "(beside --planner rrt_connect)."),
     budget: float = typer.Option(1.0, "--budget", help="Search time limit per problem and planner (s)."),
@@ -130,6 +130,11 @@ def print_report(report: dict) -> None:
     console.print(f"ours: {statuses}. Times: search + simplification, over solved problems; path m: "
                   "workspace-weighted length; colliding: returned paths the exact meshes reject"
                   + ("; speed-up: OMPL's time / ours" if ompl else ""))
+    overall = report["overall"]
+    if overall["goal_unsatisfied"] is not None:
+        met = overall["solved"] - overall["goal_unsatisfied"]
+        console.print(f"{'' if met == overall['solved'] else '[yellow]'}pose goals: {met} of {overall['solved']} "
+                      "paths end within the requests' position and orientation constraints")
     reasons: dict[tuple[str, str], str] = {}  # (status, why an end was unusable) -> the first problem
     for run in report["runs"]:
         if run["ours"].get("reason"):
