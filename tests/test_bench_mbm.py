@@ -168,8 +168,9 @@ def test_pose_planners_reach_the_goal_pose(tmp_path, planner, position_tolerance
 def _pose_goal_requests(folder: Path) -> None:
     """Turn the ARMAR-III requests into pose goals where their goal configurations put TCP_R:
     request 1 a point 5 cm along TCP_R's z axis within a 1 mm sphere, the orientation within
-    0.01 rad (XYZ Euler angles), in the frame of the arm's base link; request 2 the TCP's
-    position alone in a 2 cm box (world frame)."""
+    0.01 rad (XYZ Euler angles), in the frame of the arm's base link (written "/Right_Arm_Base");
+    request 2 the TCP's position alone in a 2 cm box (world frame), given as a point of the hand
+    base link, which is fixed to TCP_R."""
     import yaml
     from scipy.spatial.transform import Rotation
 
@@ -190,7 +191,7 @@ def _pose_goal_requests(folder: Path) -> None:
         if k == 1:
             T_base_tcp = invert(T_world_base) @ T_world_tcp
             point = T_base_tcp[:3, :3] @ offset + T_base_tcp[:3, 3]
-            header = {"frame_id": "Right_Arm_Base"}
+            header = {"frame_id": "/Right_Arm_Base"}
             constraints = {
                 "position_constraints": [{
                     "header": header, "link_name": "TCP_R", "target_point_offset": dict(zip("xyz", offset.tolist())),
@@ -203,8 +204,9 @@ def _pose_goal_requests(folder: Path) -> None:
                     "absolute_x_axis_tolerance": 0.01, "absolute_y_axis_tolerance": 0.01,
                     "absolute_z_axis_tolerance": 0.01, "parameterization": 0, "weight": 1.0}]}
         else:
+            T_hand_tcp = invert(link_pose(model, q_goal, "Hand_R_Base")) @ T_world_tcp
             constraints = {"position_constraints": [{
-                "link_name": "TCP_R",
+                "link_name": "Hand_R_Base", "target_point_offset": T_hand_tcp[:3, 3].tolist(),
                 "constraint_region": {"primitives": [{"type": "box", "dimensions": [0.02, 0.02, 0.02]}],
                                       "primitive_poses": [{"position": T_world_tcp[:3, 3].tolist()}]}}]}
         request["goal_constraints"] = [constraints]
@@ -231,6 +233,15 @@ def test_pose_goals_of_moveit_requests_are_met_by_the_pose_planners(tmp_path):
         assert f"pose goals: {len(runs)} of {len(runs)} paths end within" in " ".join(result.output.split())
         assert runs[0]["goal_error_m"] <= 1e-3 and runs[0]["goal_error_rad"] <= 1e-2
     assert runs[0]["goal_error_rad"] is not None
+    # tolerances no planner meets: the path counts as unsolved, its status stays the planner's
+    request = folder / "request0001.yaml"
+    request.write_text(request.read_text().replace("_axis_tolerance: 0.01", "_axis_tolerance: 0.0"))
+    result = runner.invoke(app, ["bench", "mbm", str(tmp_path / "problems"), "--robot", "armar3", "--planner",
+                                 "jplus_rrt", "--budget", "5", "--limit", "1", "--json", str(out)])
+    assert result.exit_code == 0, result.output
+    overall = json.loads(out.read_text())["overall"]
+    assert overall["solved"] == 0 and overall["statuses"] == {"success": 1} and overall["goal_unsatisfied"] == 1
+    assert "pose goals: 0 of 1 paths end within" in " ".join(result.output.split())
     result = runner.invoke(app, ["bench", "mbm", str(tmp_path / "problems"), "--robot", "armar3"])
     assert result.exit_code == 2
     assert ("request0001.yaml: goal_constraints[0]: a pose goal (position and orientation constraints) needs a pose "
@@ -242,9 +253,11 @@ def test_pose_goals_of_moveit_requests_are_met_by_the_pose_planners(tmp_path):
 
 
 @pytest.mark.parametrize("edit, message", [
-    (("TCP_R", "Right_Arm_Base", 1), "link_name 'Right_Arm_Base' is neither the tip 'TCP_R' of group 'RightArm' nor "
-                                     "a link below it"),
+    (("TCP_R", "Right_Arm_Base", 1), "link_name 'Right_Arm_Base' moves relative to the tip 'TCP_R' of group "
+                                     "'RightArm'; constrain the tip or a link fixed to it"),
     (("Right_Arm_Base", "Nowhere", 1), "header.frame_id 'Nowhere' is not the world or a link of robot"),
+    (("Right_Arm_Base", "Elbow_R", 1), "header.frame_id 'Elbow_R' is moved by group 'RightArm'"),
+    (("Hand_R_Base", "Gripper", 2), "link_name 'Gripper' is not a link of robot 'armar3'"),
 ])
 def test_pose_goals_on_links_that_cannot_serve_are_refused(tmp_path, edit, message):
     folder = tmp_path / "problems" / "shelf_armar3"

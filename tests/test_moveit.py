@@ -420,12 +420,22 @@ def test_a_pose_goal_is_read_from_position_and_orientation_constraints():
     ({"position_constraints": [{"link_name": "hand", "constraint_region": {
         "primitives": [{"type": 4, "dimensions": [1, 1]}], "primitive_poses": [{}]}}]},
      "r.yaml: goal_constraints[0].position_constraints[0].constraint_region.primitives[0]: cone regions are not"),
+    ({"position_constraints": [{"link_name": "hand", "constraint_region": {
+        "primitives": [{"type": "CONE", "dimensions": [1, 1]}], "primitive_poses": [{}]}}]},
+     "r.yaml: goal_constraints[0].position_constraints[0].constraint_region.primitives[0]: cone regions are not"),
+    ({"position_constraints": [{"link_name": "hand", "constraint_region": {
+        "primitives": [{"type": True, "dimensions": [1, 1, 1]}], "primitive_poses": [{}]}}]},
+     "r.yaml: goal_constraints[0].position_constraints[0].constraint_region.primitives[0]: unsupported primitive "
+     "type True"),
     ({"position_constraints": [{"link_name": "hand", "constraint_region": _REGION}],
       "orientation_constraints": [_orientation(link_name="wrist")]},
      "r.yaml: goal_constraints[0].orientation_constraints[0]: link_name and header.frame_id must be those of the "
      "position constraint ('hand', '')"),
     ({"position_constraints": [{"link_name": "hand", "constraint_region": _REGION}],
       "orientation_constraints": [_orientation(parameterization=2)]},
+     "r.yaml: goal_constraints[0].orientation_constraints[0].parameterization: expected 0 (XYZ Euler angles) or 1"),
+    ({"position_constraints": [{"link_name": "hand", "constraint_region": _REGION}],
+      "orientation_constraints": [_orientation(parameterization=True)]},
      "r.yaml: goal_constraints[0].orientation_constraints[0].parameterization: expected 0 (XYZ Euler angles) or 1"),
     ({"position_constraints": [{"link_name": "hand", "constraint_region": _REGION}],
       "orientation_constraints": [_orientation(absolute_y_axis_tolerance=-0.1)]},

@@ -13,8 +13,9 @@ reaches it will do). Returned paths of a pose planner are checked to end at that
 request whose goal is a pose (MoveIt position and orientation constraints,
 :class:`~prehensile.scene.pose_goal.PoseGoal`) needs a pose planner: it plans the constrained
 point of the link to the centre of the first region with the wanted orientation (the link must
-be the group's tip or a link below it), and every path's end is checked against the request's
-constraints (``goal_satisfied``).
+be the group's tip or a link fixed to it, the frame the world or a link the group does not
+move), and every path's end is checked against the request's constraints (``goal_satisfied``):
+a path that ends outside them counts as unsolved.
 
 Measured per problem and planner:
 
@@ -254,19 +255,31 @@ def pose_goal_frames(model: RobotModel, problem: MBMProblem, tip: str, q_start: 
     the robot at q_start (dof,), and its constrained point's frame on the group's tip link.
 
     Raises:
-        PrehensileError: a frame or link the robot does not have, or a constrained link that
-            the group's joints move relative to its tip.
+        PrehensileError: a frame or link the robot does not have, a frame that the group's
+            joints move (MoveIt would place it where each checked state puts it), or a
+            constrained link that they move relative to the group's tip.
     """
     goal, where = problem.request.pose_goal, f"{problem.request.source}: goal_constraints[0]"
     for name, what in ((goal.frame, "header.frame_id"), (goal.link, "link_name")):
         if name and name not in model.link_names:
-            raise PrehensileError(f"{where}: {what} '{name}' is not the world or a link of robot '{model.name}'")
+            raise PrehensileError(f"{where}: {what} '{name}' is not {'the world or ' * (what != 'link_name')}a link "
+                                  f"of robot '{model.name}'")
+    planned = set(model.chain_q_indices(problem.request.group).tolist())
+    if goal.frame and _moved_by(model, goal.frame, planned):
+        raise PrehensileError(f"{where}: header.frame_id '{goal.frame}' is moved by group '{problem.request.group}'; "
+                              "give the constraints in the world or in a link the group does not move")
+    if _moved_by(model, goal.link, planned) != _moved_by(model, tip, planned):
+        raise PrehensileError(f"{where}: link_name '{goal.link}' moves relative to the tip '{tip}' of group "
+                              f"'{problem.request.group}'; constrain the tip or a link fixed to it")
     T_world_frame = link_pose(model, q_start, goal.frame, T_world_base=T_world_base) if goal.frame else np.eye(4)
-    if model.link_index(tip) not in model.path_to_root(goal.link):
-        raise PrehensileError(f"{where}: link_name '{goal.link}' is neither the tip '{tip}' of group "
-                              f"'{problem.request.group}' nor a link below it")
     T_tip_link = invert(link_pose(model, q_start, tip)) @ link_pose(model, q_start, goal.link)
     return T_world_frame, T_tip_link @ goal.T_link_point
+
+
+def _moved_by(model: RobotModel, link: str, planned: set[int]) -> set[int]:
+    """The variables of ``planned`` (indices into q) on the path from ``link`` to the root:
+    two links with the same set keep their relative pose whatever those joints do."""
+    return {int(model.joint_q_index[i]) for i in model.path_to_root(link)} & planned
 
 
 def _unplanned_outside(model: RobotModel, q_start: np.ndarray, joints: Sequence[str]) -> np.ndarray:
@@ -366,6 +379,8 @@ def _record(prepared: PreparedProblem, result, time_s: float, settings: MBMSetti
                                                           settings.verify_resolution)
         if prepared.target is not None:
             record.update(_goal_errors(prepared, result.path[-1]))
+            # a path that ends outside the request's constraints solves nothing (its status stays the planner's)
+            record["solved"] = record["goal_satisfied"] is not False
     return record
 
 
@@ -407,9 +422,9 @@ def summarize(records: Sequence[dict]) -> dict:
         "collision_checks_median": float(np.median([r["collision_checks"] for r in solved])) if solved else None,
         **{f"{key}_max": max((r[key] for r in solved if r[key] is not None), default=None)
            for key in ("goal_error_m", "goal_error_rad")},
-        # pose goals: solved problems whose path ends outside the request's constraints (None: joint goals)
-        "goal_unsatisfied": sum(r.get("goal_satisfied") is False for r in solved)
-        if any(r.get("goal_satisfied") is not None for r in solved) else None,
+        # pose goals: paths that end outside the request's constraints, not solved (None: no pose goal checked)
+        "goal_unsatisfied": sum(r.get("goal_satisfied") is False for r in records)
+        if any(r.get("goal_satisfied") is not None for r in records) else None,
         "planned_again": sum(r["attempts"] > 1 for r in records),
         "statuses": statuses,
     }

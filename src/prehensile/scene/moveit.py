@@ -316,11 +316,10 @@ def _pose_goal(constraints: Mapping, where: str) -> PoseGoal | None:
                          f"got {len(shapes)} and {len(poses)}")
     regions = []
     for k, (shape, pose) in enumerate(zip(shapes, poses)):
-        if _mapping(shape, f"{here}.constraint_region.primitives[{k}]").get("type") in (4, "cone"):
-            raise SceneError(f"{here}.constraint_region.primitives[{k}]: cone regions are not supported; valid: box, "
-                             "sphere, cylinder")
-        regions.append((_primitive(shape, f"{here}.constraint_region.primitives[{k}]"),
-                        _pose(pose, f"{here}.constraint_region.primitive_poses[{k}]")))
+        w = f"{here}.constraint_region.primitives[{k}]"
+        if _primitive_kind(_mapping(shape, w)) == "cone":
+            raise SceneError(f"{w}: cone regions are not supported; valid: box, sphere, cylinder")
+        regions.append((_primitive(shape, w), _pose(pose, f"{here}.constraint_region.primitive_poses[{k}]")))
     goal = dict(link=link, frame=frame, regions=tuple(regions),
                 offset=_vector(position.get("target_point_offset") or [0, 0, 0], "xyz", f"{here}.target_point_offset"))
     if orientations:
@@ -334,7 +333,7 @@ def _pose_goal(constraints: Mapping, where: str) -> PoseGoal | None:
         if np.any(tolerances < 0):
             raise SceneError(f"{here}: the axis tolerances must be >= 0, got {tolerances.tolist()}")
         parameterization = orientation.get("parameterization", 0)
-        if parameterization not in (0, 1):
+        if type(parameterization) is not int or parameterization not in (0, 1):  # not a bool, not a float
             raise SceneError(f"{here}.parameterization: expected 0 (XYZ Euler angles) or 1 (rotation vector), got "
                              f"{parameterization!r}")
         goal.update(orientation=_rigid([0, 0, 0], orientation.get("orientation"), here)[:3, :3],
@@ -347,7 +346,7 @@ def _constrained_link(constraint: Mapping, where: str) -> tuple[str, str]:
     link = str(constraint.get("link_name") or "")
     if not link:
         raise SceneError(f"{where}: missing 'link_name'")
-    frame = str(_mapping(constraint.get("header") or {}, f"{where}.header").get("frame_id", "") or "")
+    frame = str(_mapping(constraint.get("header") or {}, f"{where}.header").get("frame_id", "") or "").lstrip("/")
     return link, "" if frame in _WORLD_FRAMES else frame
 
 
@@ -385,10 +384,16 @@ def _collision_object(obj: Any, frames: Mapping[str, np.ndarray], where: str) ->
     return Body(name, tuple(geometries), T_world_object)
 
 
+def _primitive_kind(shape: Mapping) -> str:
+    """A SolidPrimitive's ``type`` (its number or name, any case) as a lower-case name."""
+    kind = shape.get("type")
+    return _PRIMITIVE_IDS.get(kind, str(kind)) if isinstance(kind, int) and not isinstance(kind, bool) \
+        else str(kind).lower()
+
+
 def _primitive(shape: Any, where: str):
     shape = _mapping(shape, where)
-    kind = shape.get("type")
-    kind = _PRIMITIVE_IDS.get(kind, kind) if isinstance(kind, int) else str(kind).lower()
+    kind = _primitive_kind(shape)
     dims = shape.get("dimensions")
     expected = {"box": 3, "sphere": 1, "cylinder": 2, "cone": 2}
     if kind not in expected:

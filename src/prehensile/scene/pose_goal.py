@@ -28,7 +28,8 @@ class PoseGoal:
     Attributes:
         link: the constrained link.
         frame: the frame the regions and the orientation are given in: "" (the world) or a link
-            of the robot (placed where the request's start state puts it).
+            of the robot (placed where the request's start state puts it; the benchmark refuses
+            a link the planned joints move, which MoveIt would place anew in each state).
         offset: (3,) the constrained point in the link frame (m).
         regions: ((Box | Sphere | Cylinder, T_frame_region (4, 4)), ...), at least one: the
             point must lie in one of them.
