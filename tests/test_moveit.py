@@ -452,19 +452,29 @@ def test_bad_pose_goals_are_named(constraints, message):
     assert str(info.value).startswith(message), str(info.value)
 
 
-def test_a_pose_goal_decides_as_moveit_does():
-    """The constrained point in any region (box, sphere, cylinder along z), each angle of
-    R_wanted^T R_link within its tolerance (XYZ Euler angles or rotation vector)."""
+def _example_goal(rotation_vector: bool = False):
+    """(T_world_frame, PoseGoal): the point 0.1 m along a hand's z axis in one of three regions
+    (box, sphere, cylinder turned to lie along y) of a frame turned 30 deg about z, the
+    orientation within (0.05, 0.1, 0.2) rad of a turn by 20 deg about y."""
     from prehensile.scene.pose_goal import PoseGoal
-    from prehensile.spatial import invert
 
     T_world_frame = make_pose(Rotation.from_euler("z", 30, degrees=True).as_matrix(), [1.0, 0.0, 0.0])
     regions = ((Box((0.2, 0.1, 0.1)), make_pose(position=[0.5, 0, 0])), (Sphere(0.05), make_pose(position=[0, 1, 0])),
                (Cylinder(radius=0.05, length=0.4), make_pose(Rotation.from_euler("x", 90, degrees=True).as_matrix(),
                                                                  [0, 0, 1])))
     wanted = Rotation.from_euler("y", 20, degrees=True).as_matrix()
-    goal = PoseGoal("hand", regions, frame="base", offset=np.array([0, 0, 0.1]), orientation=wanted,
-                    tolerances=np.array([0.05, 0.1, 0.2]))
+    return T_world_frame, PoseGoal("hand", regions, frame="base", offset=np.array([0, 0, 0.1]), orientation=wanted,
+                                   tolerances=np.array([0.05, 0.1, 0.2]), rotation_vector=rotation_vector)
+
+
+def test_a_pose_goal_decides_as_moveit_does():
+    """The constrained point in any region (box, sphere, cylinder along z), each angle of
+    R_wanted^T R_link within its tolerance (XYZ Euler angles or rotation vector)."""
+    from prehensile.scene.pose_goal import PoseGoal
+    from prehensile.spatial import invert
+
+    T_world_frame, goal = _example_goal()
+    regions, wanted = goal.regions, goal.orientation
 
     def link_at(point, rotation=np.eye(3)):
         """T_world_link whose offset point is at ``point`` (frame), rotated by ``rotation`` from the wanted one."""
@@ -482,14 +492,62 @@ def test_a_pose_goal_decides_as_moveit_does():
         twist = Rotation.from_euler("XYZ", angles).as_matrix()  # intrinsic: Rx(a) Ry(b) Rz(c)
         assert goal.satisfied(T_world_frame, link_at([0.5, 0, 0], twist)) == ok, angles
         np.testing.assert_allclose(goal.angles(T_world_frame, link_at([0.5, 0, 0], twist)), angles, atol=1e-12)
-    by_vector = PoseGoal("hand", regions, orientation=wanted, tolerances=np.array([0.05, 0.1, 0.2]),
-                         rotation_vector=True, offset=goal.offset)
+    by_vector = _example_goal(rotation_vector=True)[1]
     vector = np.array([0.0, 0.09, 0.19])
     turned = link_at([0.5, 0, 0], Rotation.from_rotvec(vector).as_matrix())
     assert by_vector.satisfied(T_world_frame, turned)
     np.testing.assert_allclose(by_vector.angles(T_world_frame, turned), vector, atol=1e-12)
     assert not by_vector.satisfied(T_world_frame, link_at([0.5, 0, 0], Rotation.from_rotvec([0.06, 0, 0]).as_matrix()))
     assert PoseGoal("hand", regions).target(T_world_frame).shape == (3,)
+
+
+@pytest.mark.parametrize("rotation_vector", [False, True])
+def test_pose_goal_targets_keep_their_margin(rotation_vector):
+    """Random targets (uniform in the regions by volume, angles within the tolerances) and the
+    target closest to a link pose all meet the goal shrunk by the margin; a pose that meets
+    the shrunk goal is its own closest target."""
+    import dataclasses
+
+    from prehensile.spatial import invert
+
+    T_world_frame, goal = _example_goal(rotation_vector)
+    margin = (0.01, 0.02)
+    (box, T_box), (sphere, T_sphere), (cylinder, T_cylinder) = goal.regions
+    shrunk = dataclasses.replace(goal, tolerances=goal.tolerances - margin[1], regions=(
+        (Box(tuple(np.subtract(box.size, 2 * margin[0]))), T_box), (Sphere(sphere.radius - margin[0]), T_sphere),
+        (Cylinder(cylinder.radius - margin[0], cylinder.length - 2 * margin[0]), T_cylinder)))
+    rng = np.random.default_rng(0)
+    targets = np.array([goal.sample(rng, T_world_frame, margin) for _ in range(3000)])
+    links = targets @ invert(goal.T_link_point)
+    assert all(shrunk.satisfied(T_world_frame, T) for T in links)
+    points = (invert(T_world_frame) @ targets[:, :, 3].T).T[:, :3]
+    in_box = np.all(np.abs(points - [0.5, 0, 0]) <= [0.09, 0.04, 0.04], axis=1)
+    volumes = np.array([0.18 * 0.08 * 0.08, 4 / 3 * np.pi * 0.04 ** 3, np.pi * 0.04 ** 2 * 0.38])
+    assert abs(in_box.mean() - volumes[0] / volumes.sum()) < 0.03
+    np.testing.assert_allclose(points[in_box].min(axis=0), [0.41, -0.04, -0.04], atol=0.005)
+    np.testing.assert_allclose(points[in_box].max(axis=0), [0.59, 0.04, 0.04], atol=0.005)
+    angles = np.array([goal.angles(T_world_frame, T) for T in links])
+    np.testing.assert_allclose(np.abs(angles).max(axis=0), goal.tolerances - margin[1], rtol=0.02)
+
+    outside = T_world_frame @ make_pose(goal.orientation @ Rotation.from_euler("XYZ", [0.3, -0.4, 0.5]).as_matrix(),
+                                        [0.8, 0.3, 0.2])
+    closest = goal.closest(T_world_frame, outside, margin)
+    assert shrunk.satisfied(T_world_frame, closest @ invert(goal.T_link_point))
+    np.testing.assert_allclose(invert(T_world_frame) @ closest[:, 3], [0.59, 0.04, 0.04, 1], atol=1e-12)
+    bounds = goal.tolerances - margin[1]
+    np.testing.assert_allclose(goal.angles(T_world_frame, closest),
+                               np.clip(goal.angles(T_world_frame, outside), -bounds, bounds), atol=1e-12)
+    for T_world_link in links[:20]:
+        np.testing.assert_allclose(goal.closest(T_world_frame, T_world_link, margin), T_world_link @ goal.T_link_point,
+                                   atol=1e-12)
+    # a region or tolerance below its margin: its centre and the wanted orientation
+    tiny = dataclasses.replace(goal, regions=((Sphere(0.001), T_sphere),), tolerances=np.full(3, 0.001))
+    np.testing.assert_allclose(tiny.sample(rng, T_world_frame, margin), tiny.target(T_world_frame), atol=1e-12)
+    position_only = dataclasses.replace(goal, orientation=None)
+    point = position_only.sample(rng, T_world_frame, margin)
+    pointing = make_pose(T_world_frame[:3, :3] @ goal.orientation, point) @ invert(goal.T_link_point)
+    assert point.shape == (3,) and shrunk.satisfied(T_world_frame, pointing)
+    np.testing.assert_allclose(position_only.closest(T_world_frame, outside, margin), closest[:3, 3], atol=1e-12)
 
 
 def test_missing_path_is_a_scene_error(tmp_path):

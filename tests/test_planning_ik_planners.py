@@ -257,7 +257,8 @@ def test_unreachable_goals_are_statuses_within_budget(panda_scene):
     far[:3, 3] = [0.0, 0.0, 3.0]
     result = ik_rrt(ctx, q0, grasp_sampler(ctx, solver, far[None], q0), IKRRTSettings(time_budget_s=0.2), rng=0)
     assert result.status is PlanStatus.NO_GOAL_CONFIGURATION and result.stats.plan_time_s < 0.4
-    assert result.blamed_ends == () and "reason" not in result.info  # IK's failure, not an end's
+    assert result.blamed_ends == ()  # IK's failure, not an end's
+    assert result.info["reason"].startswith("the IK found no valid goal configuration in ")
     result = jplus_rrt(ctx, q0, far[None], settings=JPlusRRTSettings(time_budget_s=0.2), rng=0)
     assert result.status is PlanStatus.TIMEOUT and result.stats.plan_time_s < 0.4
     colliding = q0.copy()
@@ -377,3 +378,5 @@ def test_plan_to_pose_names_the_valid_planners_and_targets():
                                      ("jplus_rrt", np.zeros(3), "jplus_rrt steps toward a full pose")]:
         with pytest.raises(PrehensileError, match=message):
             plan_to_pose(ctx, q, target, "arm", planner)
+    with pytest.raises(PrehensileError, match="jplus_rrt steps toward fixed poses: more_targets is for ik_rrt"):
+        plan_to_pose(ctx, q, np.eye(4), "arm", "jplus_rrt", more_targets=lambda rng: np.eye(4))

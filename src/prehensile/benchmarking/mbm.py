@@ -11,11 +11,12 @@ Our planner is RRT-Connect to the goal configuration, or a pose planner (IK-RRT,
 the pose that configuration gives the tip link of the request's group (any configuration that
 reaches it will do). Returned paths of a pose planner are checked to end at that pose. A
 request whose goal is a pose (MoveIt position and orientation constraints,
-:class:`~prehensile.scene.pose_goal.PoseGoal`) needs a pose planner: it plans the constrained
-point of the link to the centre of the first region with the wanted orientation (the link must
-be the group's tip or a link fixed to it, the frame the world or a link the group does not
-move), and every path's end is checked against the request's constraints (``goal_satisfied``):
-a path that ends outside them counts as unsolved.
+:class:`~prehensile.scene.pose_goal.PoseGoal`) needs a pose planner (the link must be the
+group's tip or a link fixed to it, the frame the world or a link the group does not move):
+IK-RRT samples goals anywhere in the regions and tolerances (its first IK aims at the pose
+nearest to the start's: a start that meets the goal is a goal), J+-RRT steps toward the first
+region's centre with the wanted orientation. Every path's end is checked against the request's
+constraints (``goal_satisfied``): a path that ends outside them counts as unsolved.
 
 Measured per problem and planner:
 
@@ -41,6 +42,7 @@ import logging
 import time
 import zlib
 from dataclasses import asdict, dataclass
+from functools import partial
 from pathlib import Path
 from typing import Callable, Sequence
 
@@ -49,6 +51,7 @@ import numpy as np
 from prehensile.benchmarking.stats import machine, mean_or_none, ratio, time_summary, versions
 from prehensile.collision.spheres import SphereModel, generate_sphere_model, pad_sphere_model, spheres_from_urdf
 from prehensile.errors import PrehensileError
+from prehensile.ik import JacobianIKSettings
 from prehensile.kinematics import link_pose
 from prehensile.model.robot_model import RobotModel
 from prehensile.planning.to_pose import POSE_PLANNERS
@@ -57,6 +60,10 @@ from prehensile.settings import FINITE_POSITIVE, POSITIVE, at_least, check_field
 from prehensile.spatial import invert, rotation_error
 
 log = logging.getLogger(__name__)
+
+IK_MARGIN = (2.0 * JacobianIKSettings.position_tolerance, 2.0 * JacobianIKSettings.rotation_tolerance)
+"""(m, rad) how far inside a pose goal's regions and tolerances IK-RRT's targets stay: twice
+its IK's tolerances, so that the configurations it finds meet the constraints."""
 
 PLANNERS = ("rrt_connect", *POSE_PLANNERS)
 
@@ -208,7 +215,7 @@ class PreparedProblem:
         self.tip = goal_tip(model, problem, settings.planner)
         # the pose planners' goal: the world pose (4, 4) or position (3,) of the tool frame T_tip_tcp on
         # the tip link; for a joint goal the tip link's pose at the goal configuration
-        self.T_tip_tcp = self.T_world_frame = self.target = None
+        self.T_tip_tcp = self.T_world_frame = self.target = self.more_targets = None
         pose_goal = problem.request.pose_goal
         if pose_goal is not None:
             self.T_world_frame, self.T_tip_tcp = pose_goal_frames(model, problem, self.tip, self.q_start,
@@ -216,6 +223,13 @@ class PreparedProblem:
             self.target, self.q_goal = pose_goal.target(self.T_world_frame), None
         elif self.tip is not None:
             self.target = link_pose(model, self.q_goal, self.tip, T_world_base=T_world_base)
+        # what the pose planner aims at first: the target, or for IK-RRT and a pose goal the pose of
+        # the goal region nearest to the start, then random poses of the region (more_targets)
+        self.first_target = self.target
+        if pose_goal is not None and settings.planner == "ik_rrt":
+            T_world_link = link_pose(model, self.q_start, pose_goal.link, T_world_base=T_world_base)
+            self.first_target = pose_goal.closest(self.T_world_frame, T_world_link, IK_MARGIN)
+            self.more_targets = partial(pose_goal.sample, T_world_frame=self.T_world_frame, margin=IK_MARGIN)
         self.ctx = PlanningContext(model, scene.collision_obstacles(robot), joints=joints, q_ref=self.q_start,
                                    T_world_base=T_world_base, spheres=spheres[0], cover=spheres[1],
                                    attached=scene.attached_objects(robot), resolution=settings.resolution,
@@ -344,8 +358,8 @@ def _plan(prepared: PreparedProblem, settings: MBMSettings, rng: np.random.Gener
     if prepared.target is None:
         return rrt_connect(prepared.ctx, prepared.q_start, prepared.q_goal,
                            settings=RRTConnectSettings(time_budget_s=settings.time_budget_s), rng=rng)
-    return plan_to_pose(prepared.ctx, prepared.q_start, prepared.target, prepared.problem.request.group,
-                        settings.planner, settings.time_budget_s, rng, prepared.T_tip_tcp)
+    return plan_to_pose(prepared.ctx, prepared.q_start, prepared.first_target, prepared.problem.request.group,
+                        settings.planner, settings.time_budget_s, rng, prepared.T_tip_tcp, prepared.more_targets)
 
 
 def _ompl(prepared: PreparedProblem, settings: MBMSettings) -> dict:
@@ -366,7 +380,8 @@ def _record(prepared: PreparedProblem, result, time_s: float, settings: MBMSetti
         "certify_s": result.stats.certify_time_s if certified else None,
         "collision_checks": result.stats.collision_checks,
         "waypoints": len(result.path), "path_length": None, "exact_colliding": None,
-        "goal_error_m": None, "goal_error_rad": None,  # pose planners: the path's end against the goal pose
+        # pose planners: the path's end against the goal pose (a pose goal's: its first region's centre)
+        "goal_error_m": None, "goal_error_rad": None,
         "goal_satisfied": None,  # pose goals: the path's end meets the request's constraints
         "attempts": result.info.get("attempts", 1),  # > 1: planned again after a failed certification
     }

@@ -224,8 +224,14 @@ def multi_eef_rrt(ctx: PlanningContext | dict[str, PlanningContext], q_start: np
                 stats = _total_stats(list(searches.values()), clock() - start)
                 return contexts[name].explain(dataclasses.replace(result, stats=stats, end_effector=name), q_start)
     stats = _total_stats(list(searches.values()), clock() - start)
-    status = PlanStatus.TIMEOUT if stats.ik_solutions else PlanStatus.NO_GOAL_CONFIGURATION
-    return contexts[next(iter(samplers))].explain(PlanResult(status, np.zeros((0, len(q_start))), stats), q_start)
+    if stats.ik_solutions:
+        result = PlanResult(PlanStatus.TIMEOUT, np.zeros((0, len(q_start))), stats)
+    else:
+        samples = sum(search.calls for search in searches.values())
+        result = PlanResult(PlanStatus.NO_GOAL_CONFIGURATION, np.zeros((0, len(q_start))), stats, info={
+            "reason": f"the IK found no valid goal configuration in {samples} samples of {settings.ik_attempts} "
+                      "attempts: the targets may be out of reach, or every solution found collides"})
+    return contexts[next(iter(samplers))].explain(result, q_start)
 
 
 def _random_seed(solvers: Sequence[ChainSolver], q_ref: np.ndarray, rng: np.random.Generator) -> np.ndarray:
@@ -236,14 +242,22 @@ def _random_seed(solvers: Sequence[ChainSolver], q_ref: np.ndarray, rng: np.rand
     return q
 
 
-def grasp_sampler(ctx: PlanningContext, solver: ChainSolver, target_poses: np.ndarray, q_ref: np.ndarray) -> GoalSampler:
-    """IK-RRT goals: one arm, any of the world tool poses (k, 4, 4) (e.g. object pose x grasps)."""
+def grasp_sampler(ctx: PlanningContext, solver: ChainSolver, target_poses: np.ndarray, q_ref: np.ndarray,
+                  more_targets: Callable[[np.random.Generator], np.ndarray] | None = None) -> GoalSampler:
+    """IK-RRT goals: one arm, any of the world tool poses (k, 4, 4) (e.g. object pose x grasps;
+    positions (k, 3) for a position-only solver).
+
+    With ``more_targets`` the first sample aims at ``target_poses`` and every later one at the
+    targets ``more_targets(rng)`` returns (same kind), e.g. random poses of a goal region
+    (``grasp`` is then the index in the targets of its own sample).
+    """
     q_ref = ctx.check_solvers([solver], "grasp_sampler", q_ref)
-    targets = solver.targets(target_poses)
+    first = solver.targets(target_poses)
 
     def sample(rng: np.random.Generator, call: int, attempts: int, budget: float):
         # the first seed is q_ref itself: the solution nearest to it (q_ref when it reaches a pose)
         seed = q_ref if call == 0 else _random_seed([solver], q_ref, rng)
+        targets = first if more_targets is None or call == 0 else solver.targets(more_targets(rng))
         settings = CompleteIKSettings(time_budget_s=max(budget, 1e-6), max_restarts=attempts)
         result = solve_ik_complete(solver, targets, seed, rng, settings, is_valid=ctx.is_usable_end)
         return (result.q, {"grasp": result.target_index}) if result.success else (None, {})

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Callable
+
 import numpy as np
 
 from prehensile.errors import PrehensileError
@@ -16,7 +18,8 @@ POSE_PLANNERS = ("ik_rrt", "jplus_rrt")
 
 def plan_to_pose(ctx: PlanningContext, q_start: np.ndarray, target: np.ndarray, chain: str, planner: str = "ik_rrt",
                  time_budget_s: float = 1.0, rng: np.random.Generator | int | None = None,
-                 T_tip_tcp: np.ndarray | None = None) -> PlanResult:
+                 T_tip_tcp: np.ndarray | None = None,
+                 more_targets: Callable[[np.random.Generator], np.ndarray] | None = None) -> PlanResult:
     """Plan from ``q_start`` (dof,) to any configuration that puts the tool frame (the tip link
     of ``chain`` times ``T_tip_tcp`` (4, 4), default the tip link itself) at the world pose
     ``target`` (4, 4), or (ik_rrt only) its origin at the world position ``target`` (3,) (m).
@@ -27,9 +30,12 @@ def plan_to_pose(ctx: PlanningContext, q_start: np.ndarray, target: np.ndarray, 
             while the trees grow) or ``jplus_rrt`` (Jacobian steps toward the pose).
         time_budget_s: search time limit (s).
         rng: random source or seed.
+        more_targets: (ik_rrt only) further targets like ``target``, drawn anew for each IK
+            sample after the first (:func:`~prehensile.planning.ik_rrt.grasp_sampler`), e.g.
+            random poses of a goal region (:meth:`prehensile.scene.PoseGoal.sample`).
 
     Raises:
-        PrehensileError: an unknown planner, or a position target for jplus_rrt.
+        PrehensileError: an unknown planner, a position target or ``more_targets`` for jplus_rrt.
     """
     if planner not in POSE_PLANNERS:
         raise PrehensileError(f"planner '{planner}' does not plan to a pose; valid: {', '.join(POSE_PLANNERS)}")
@@ -37,6 +43,8 @@ def plan_to_pose(ctx: PlanningContext, q_start: np.ndarray, target: np.ndarray, 
     if target.shape not in ((4, 4), (3,)):
         raise PrehensileError(f"{planner}: the target must be a (4, 4) pose or a (3,) position, got {target.shape}")
     if planner == "jplus_rrt":
+        if more_targets is not None:
+            raise PrehensileError("jplus_rrt steps toward fixed poses: more_targets is for ik_rrt")
         if target.shape == (3,):
             raise PrehensileError("jplus_rrt steps toward a full pose: give a (4, 4) target, or plan to a position "
                                   "with ik_rrt")
@@ -44,5 +52,6 @@ def plan_to_pose(ctx: PlanningContext, q_start: np.ndarray, target: np.ndarray, 
                          T_tip_tcp=T_tip_tcp, chain=chain)
     solver = ChainSolver(ctx.model, chain, T_tip_tcp=T_tip_tcp, T_world_root=ctx.T_world_base,
                          settings=JacobianIKSettings(position_only=target.shape == (3,)))
-    return ik_rrt(ctx, q_start, grasp_sampler(ctx, solver, target[None], q_start),
+    more = None if more_targets is None else (lambda rng: np.asarray(more_targets(rng), dtype=float)[None])
+    return ik_rrt(ctx, q_start, grasp_sampler(ctx, solver, target[None], q_start, more),
                   IKRRTSettings(time_budget_s=time_budget_s), rng)

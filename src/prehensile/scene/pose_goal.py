@@ -6,6 +6,10 @@ lie within per-axis tolerances of a wanted one, as MoveIt's ``PositionConstraint
 ``OrientationConstraint`` decide it: the rotation from the wanted orientation to the link's,
 ``R_wanted^T R_link``, as XYZ Euler angles (parameterization 0: ``Rx(a) Ry(b) Rz(c)``, b within
 +-pi/2) or as a rotation vector (1), each component within its tolerance.
+
+Planners that sample goals (IK-RRT) draw targets from the region (:meth:`PoseGoal.sample`) and
+start from the one nearest to where the link is (:meth:`PoseGoal.closest`); both keep a margin
+from the region's bounds, so that an IK solution within its own tolerance still meets them.
 """
 
 from __future__ import annotations
@@ -15,7 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from prehensile.model.geometry import Box, Cylinder, Sphere
-from prehensile.spatial import make_pose, rotation_error
+from prehensile.spatial import axis_angle_to_matrix, make_pose, rotation_error
 
 SLACK = 1e-9
 """m or rad added to every bound of :meth:`PoseGoal.satisfied` (rounding)."""
@@ -61,6 +65,61 @@ class PoseGoal:
             return centre[:3]
         return make_pose(T_world_frame[:3, :3] @ self.orientation, centre[:3])
 
+    def sample(self, rng: np.random.Generator, T_world_frame: np.ndarray, margin: tuple[float, float] = (0.0, 0.0)
+               ) -> np.ndarray:
+        """A random target of the point frame (:attr:`T_link_point`) that meets the constraints:
+        a pose (4, 4), or without an orientation constraint a position (3,) (m), in the world.
+
+        The point is uniform in the regions shrunk by ``margin[0]`` (m) (a region chosen in
+        proportion to its volume), each angle uniform within its tolerance less ``margin[1]``
+        (rad); a region or tolerance smaller than its margin gives its centre.
+        """
+        shrunk = [_shrunk(shape, margin[0]) for shape, _ in self.regions]
+        volumes = np.array([_volume(kind, half) for kind, half in shrunk])
+        k = rng.choice(len(shrunk), p=volumes / volumes.sum()) if volumes.sum() > 0 else rng.integers(len(shrunk))
+        point = self.regions[k][1] @ np.append(_draw(*shrunk[k], rng), 1.0)
+        bounds = self._angle_bounds(margin[1])
+        return self._target(T_world_frame, point[:3], rng.uniform(-bounds, bounds))
+
+    def closest(self, T_world_frame: np.ndarray, T_world_link: np.ndarray, margin: tuple[float, float] = (0.0, 0.0)
+                ) -> np.ndarray:
+        """The target (as :meth:`sample`) nearest to the point frame of the link at world pose
+        T_world_link (4, 4): the point moved to the nearest point of the shrunk regions, each
+        angle clipped into its tolerance less the margin. The link's own pose (up to rounding)
+        if it meets the constraints with the margin to spare."""
+        point = np.linalg.solve(T_world_frame, T_world_link @ np.append(self.offset, 1.0))
+        candidates = []
+        for shape, T_frame_region in self.regions:
+            local = np.linalg.solve(T_frame_region, point)[:3]
+            nearest = _project(*_shrunk(shape, margin[0]), local)
+            candidates.append((np.linalg.norm(nearest - local), (T_frame_region @ np.append(nearest, 1.0))[:3]))
+        position = min(candidates, key=lambda c: c[0])[1]
+        if self.orientation is None:
+            return self._target(T_world_frame, position, None)
+        bounds = self._angle_bounds(margin[1])
+        return self._target(T_world_frame, position, np.clip(self.angles(T_world_frame, T_world_link), -bounds, bounds))
+
+    def _angle_bounds(self, margin: float) -> np.ndarray:
+        """(3,) the angles (rad) targets may take: the tolerances less ``margin``, the second
+        XYZ Euler angle within +-pi/2 (where it is decoded)."""
+        bounds = np.maximum(self.tolerances - margin, 0.0)
+        if not self.rotation_vector:
+            bounds[1] = min(bounds[1], 0.5 * np.pi)
+        return bounds
+
+    def _target(self, T_world_frame: np.ndarray, point: np.ndarray, angles: np.ndarray | None) -> np.ndarray:
+        """The world target of the point frame at ``point`` (3,) in the frame, rotated from the
+        wanted orientation by ``angles`` (3,) as the tolerances measure them."""
+        position = (T_world_frame @ np.append(point, 1.0))[:3]
+        if self.orientation is None:
+            return position
+        if self.rotation_vector:
+            angle = np.linalg.norm(angles)
+            offset = axis_angle_to_matrix(angles / angle, angle) if angle > 0 else np.eye(3)
+        else:
+            offset = np.linalg.multi_dot([axis_angle_to_matrix(axis, a) for axis, a in zip(np.eye(3), angles)])
+        return make_pose(T_world_frame[:3, :3] @ self.orientation @ offset, position)
+
     def satisfied(self, T_world_frame: np.ndarray, T_world_link: np.ndarray) -> bool:
         """Whether the link at world pose T_world_link (4, 4) meets the constraints, the frame at
         T_world_frame (4, 4)."""
@@ -81,12 +140,52 @@ class PoseGoal:
                          np.arctan2(-R[0, 1], R[0, 0])])
 
 
+def _shrunk(shape, margin: float) -> tuple[str, np.ndarray]:
+    """(kind, half extents) of a region shrunk by ``margin`` (m) on every side, none below 0:
+    ("box", (3,) half sides), ("sphere", (1,) radius) or ("cylinder", (radius, half length))."""
+    if isinstance(shape, Box):
+        kind, half = "box", 0.5 * np.asarray(shape.size, dtype=float)
+    elif isinstance(shape, Sphere):
+        kind, half = "sphere", np.array([shape.radius])
+    elif isinstance(shape, Cylinder):
+        kind, half = "cylinder", np.array([shape.radius, 0.5 * shape.length])
+    else:
+        raise TypeError(f"a goal region is a Box, Sphere or Cylinder, got {type(shape).__name__}")
+    return kind, np.maximum(half - margin, 0.0)
+
+
+def _volume(kind: str, half: np.ndarray) -> float:
+    """Volume (m^3) of a shrunk region (:func:`_shrunk`)."""
+    if kind == "box":
+        return float(np.prod(2.0 * half))
+    if kind == "sphere":
+        return float(4.0 / 3.0 * np.pi * half[0] ** 3)
+    return float(2.0 * np.pi * half[0] ** 2 * half[1])
+
+
+def _draw(kind: str, half: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """A point (3,) uniform in a shrunk region (:func:`_shrunk`), in its frame."""
+    if kind == "box":
+        return rng.uniform(-half, half)
+    if kind == "sphere":
+        direction = rng.normal(size=3)
+        return direction / max(np.linalg.norm(direction), 1e-12) * half[0] * rng.uniform() ** (1.0 / 3.0)
+    radius, angle = half[0] * np.sqrt(rng.uniform()), rng.uniform(0.0, 2.0 * np.pi)
+    return np.array([radius * np.cos(angle), radius * np.sin(angle), rng.uniform(-half[1], half[1])])
+
+
+def _project(kind: str, half: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """The point (3,) of a shrunk region (:func:`_shrunk`) nearest to p (3,), in its frame."""
+    if kind == "box":
+        return np.clip(p, -half, half)
+    if kind == "sphere":
+        norm = np.linalg.norm(p)
+        return p if norm <= half[0] else p * (half[0] / norm)
+    radial = np.hypot(p[0], p[1])
+    scale = 1.0 if radial <= half[0] else half[0] / radial
+    return np.array([p[0] * scale, p[1] * scale, np.clip(p[2], -half[1], half[1])])
+
+
 def _inside(shape, p: np.ndarray) -> bool:
     """Whether the point p (3,) in the shape's frame lies in the Box, Sphere or Cylinder (z axis)."""
-    if isinstance(shape, Box):
-        return bool(np.all(np.abs(p) <= 0.5 * np.asarray(shape.size) + SLACK))
-    if isinstance(shape, Sphere):
-        return bool(np.linalg.norm(p) <= shape.radius + SLACK)
-    if isinstance(shape, Cylinder):
-        return bool(np.hypot(p[0], p[1]) <= shape.radius + SLACK and abs(p[2]) <= 0.5 * shape.length + SLACK)
-    raise TypeError(f"a goal region is a Box, Sphere or Cylinder, got {type(shape).__name__}")
+    return bool(np.array_equal(_project(*_shrunk(shape, -SLACK), p), p))
