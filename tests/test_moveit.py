@@ -550,6 +550,14 @@ def test_pose_goal_targets_keep_their_margin(rotation_vector):
     np.testing.assert_allclose(position_only.closest(T_world_frame, outside, margin), closest[:3, 3], atol=1e-12)
 
 
+def test_alternative_goals_are_named_and_the_first_is_read(caplog):
+    goals = [{"joint_constraints": [{"joint_name": "j1", "position": value}]} for value in (0.5, -0.5)]
+    with caplog.at_level(logging.WARNING):
+        request = motion_plan_request_from_dict({"group_name": "arm", "goal_constraints": goals}, "r.yaml")
+    assert dict(request.goal) == {"j1": 0.5}
+    assert "r.yaml: goal_constraints: 2 alternative goals given; only goal_constraints[0] is read" in caplog.text
+
+
 def test_missing_path_is_a_scene_error(tmp_path):
     with pytest.raises(SceneError, match="absent: no such folder or archive"):
         list(iter_mbm_problems(tmp_path / "absent"))

@@ -28,7 +28,7 @@ MoveIt conventions and how they are mapped:
   constraint on the same link and frame, read as a :class:`~prehensile.scene.pose_goal.PoseGoal`
   (``header.frame_id`` empty, ``world`` or a link of the robot). Joint and pose constraints
   together and mesh or cone regions are refused; MoveIt's alternative goals
-  (``goal_constraints[1:]``) are not read.
+  (``goal_constraints[1:]``) are not read (a warning says so).
 - The scene's ``allowed_collision_matrix`` is not read: the robot's own SRDF (disabled
   collision pairs) decides which of its link pairs are checked.
 - Meshes (``vertices`` / ``triangles``) become in-memory :class:`~prehensile.model.geometry.Mesh`
@@ -265,6 +265,9 @@ def motion_plan_request_from_dict(data: Any, source: str) -> MotionPlanRequest:
     goal: dict[str, float] = {}
     pose_goal = None
     constraints = _list(data.get("goal_constraints"), f"{source}: goal_constraints")
+    if len(constraints) > 1:
+        log.warning("%s: goal_constraints: %d alternative goals given; only goal_constraints[0] is read and planned "
+                    "to (a path that reaches it reaches one of the goals)", source, len(constraints))
     if constraints:
         first = _mapping(constraints[0], f"{source}: goal_constraints[0]")
         joints = f"{source}: goal_constraints[0].joint_constraints"
