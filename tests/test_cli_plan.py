@@ -160,6 +160,27 @@ def test_plan_to_a_target_pose(demo, planner, tmp_path):
     np.testing.assert_allclose(trajectory["q"][-1], waypoints[-1], atol=1e-6)
 
 
+def test_plan_to_a_target_within_tolerances(demo, tmp_path):
+    """With tolerances IK-RRT may end anywhere in the ball and orientation range around the
+    target; its first goal is the nearest such pose to the start's, on the ball's surface here."""
+    from scipy.spatial.transform import Rotation
+
+    _, scene, _ = demo
+    result = _plan("plan_demo", "--chain", "arm", "--target", *BEHIND_THE_WALL, "--position-tolerance", "0.05",
+                   "--rotation-tolerance", "0.3", "--out", tmp_path)
+    assert result.exit_code == 0, result.output
+    path = json.loads((tmp_path / "path.json").read_text())
+    assert path["status"] == "success" and path["goal_satisfied"] is True
+    assert path["tolerance"] == {"position_m": 0.05, "rotation_rad": 0.3}
+    robot = scene.robots[0]
+    reached = robot.configuration.copy()
+    reached[robot.model.chain_q_indices("arm")] = path["waypoints"][-1]
+    tcp = link_pose(robot.model, reached, "panda_hand_tcp", T_world_base=robot.T_world_base)
+    target = np.array(path["target"])
+    assert 0.04 < np.linalg.norm(tcp[:3, 3] - target[:3, 3]) <= 0.05
+    assert np.all(np.abs(Rotation.from_matrix(target[:3, :3].T @ tcp[:3, :3]).as_rotvec()) <= 0.3)
+
+
 def test_goal_in_collision_exits_1(tmp_path):
     (tmp_path / "trajectory.json").write_text("{}")  # an earlier plan's
     result = _plan("plan_demo", "--goal", *IN_THE_WALL, "--out", tmp_path)
@@ -261,6 +282,13 @@ def test_plan_to_a_position_of_a_short_arm(tmp_path):
      "use ik_rrt or jplus_rrt"),
     (["plan_demo", "--chain", "arm", "--planner", "jplus_rrt"], "give --target"),
     (["plan_demo", "--goal", *IN_THE_WALL, "--target", *BEHIND_THE_WALL], "not both"),
+    (["plan_demo", "--position-tolerance", "0.1"], "tolerances of a --target; give one"),
+    (["plan_demo", "--chain", "arm", "--target", *BEHIND_THE_WALL, "--planner", "jplus_rrt", "--rotation-tolerance",
+      "0.1"], "--planner jplus_rrt steps toward the --target itself; the tolerances are for ik_rrt"),
+    (["plan_demo", "--chain", "arm", "--target", "0.3", "0.4", "0.5", "--rotation-tolerance", "0.1"],
+     "--rotation-tolerance: the --target is a position (x y z)"),
+    (["plan_demo", "--chain", "arm", "--target", *BEHIND_THE_WALL, "--position-tolerance", "-1"],
+     "--position-tolerance: must be a finite number >= 0, got -1.0"),
     (["plan_demo", "--seed", "-1"], "--seed"),
     (["plan_demo", "--ball-radius", "0"], "--ball-radius: must be positive"),
     (["plan_demo", "--budget", "inf"], "--budget: must be a positive, finite time (s), got inf"),

@@ -42,7 +42,6 @@ import logging
 import time
 import zlib
 from dataclasses import asdict, dataclass
-from functools import partial
 from pathlib import Path
 from typing import Callable, Sequence
 
@@ -51,19 +50,14 @@ import numpy as np
 from prehensile.benchmarking.stats import machine, mean_or_none, ratio, time_summary, versions
 from prehensile.collision.spheres import SphereModel, generate_sphere_model, pad_sphere_model, spheres_from_urdf
 from prehensile.errors import PrehensileError
-from prehensile.ik import JacobianIKSettings
 from prehensile.kinematics import link_pose
 from prehensile.model.robot_model import RobotModel
-from prehensile.planning.to_pose import POSE_PLANNERS
+from prehensile.planning.to_pose import POSE_PLANNERS, region_targets
 from prehensile.scene.moveit import MBMProblem, iter_mbm_problems
 from prehensile.settings import FINITE_POSITIVE, POSITIVE, at_least, check_fields
 from prehensile.spatial import invert, rotation_error
 
 log = logging.getLogger(__name__)
-
-IK_MARGIN = (2.0 * JacobianIKSettings.position_tolerance, 2.0 * JacobianIKSettings.rotation_tolerance)
-"""(m, rad) how far inside a pose goal's regions and tolerances IK-RRT's targets stay: twice
-its IK's tolerances, so that the configurations it finds meet the constraints."""
 
 PLANNERS = ("rrt_connect", *POSE_PLANNERS)
 
@@ -228,8 +222,7 @@ class PreparedProblem:
         self.first_target = self.target
         if pose_goal is not None and settings.planner == "ik_rrt":
             T_world_link = link_pose(model, self.q_start, pose_goal.link, T_world_base=T_world_base)
-            self.first_target = pose_goal.closest(self.T_world_frame, T_world_link, IK_MARGIN)
-            self.more_targets = partial(pose_goal.sample, T_world_frame=self.T_world_frame, margin=IK_MARGIN)
+            self.first_target, self.more_targets = region_targets(pose_goal, self.T_world_frame, T_world_link)
         self.ctx = PlanningContext(model, scene.collision_obstacles(robot), joints=joints, q_ref=self.q_start,
                                    T_world_base=T_world_base, spheres=spheres[0], cover=spheres[1],
                                    attached=scene.attached_objects(robot), resolution=settings.resolution,

@@ -6,7 +6,9 @@ The start is the robot's configuration in the scene. The goal is a configuration
 ``--chain``'s tip (``--target x y z roll pitch yaw``), planned with IK-RRT (goal
 configurations sampled by IK during the search) or J+-RRT (Jacobian steps toward the pose),
 or a world position of the tip (``--target x y z``, any orientation: for arms with fewer than
-six joints, such as NAO's), planned with IK-RRT.
+six joints, such as NAO's), planned with IK-RRT. With ``--position-tolerance`` and
+``--rotation-tolerance`` IK-RRT may end anywhere in that region around the target
+(:func:`tolerance_region`).
 The planned joints are ``--chain``'s, else the joints the scene's goal names, else all of the
 robot's; joints not planned stay at their start values. The world is the scene's obstacles
 and objects plus the other robots at their configurations; the objects the robot holds
@@ -36,8 +38,13 @@ from prehensile.cli.app import (BALL_RADIUS_OPTION, app, check_ball_radius, chec
                                 extra_values, handles_errors)
 from prehensile.collision.attached import AttachedObject
 from prehensile.errors import PrehensileError, SceneError, UnknownFrameError, missing_file
-from prehensile.planning.to_pose import POSE_PLANNERS, plan_to_pose
+from prehensile.kinematics import link_pose
+from prehensile.model.geometry import Sphere
+from prehensile.model.robot_model import RobotModel
+from prehensile.planning.to_pose import IK_RRT_MARGIN, POSE_PLANNERS, plan_to_pose, region_targets
+from prehensile.scene.pose_goal import PoseGoal
 from prehensile.scene.scene import Body, PlacedRobot, Scene
+from prehensile.spatial import make_pose
 
 EXIT_NO_PATH = 1
 CONFIGURATION_PLANNERS = ("rrt_connect",)
@@ -112,22 +119,55 @@ def goal_configuration(robot: PlacedRobot, joints: list[str], values: list[str] 
     return q
 
 
+def tolerance_region(model: RobotModel, chain: str | None, target: np.ndarray | None, planner: str,
+                     position_tolerance: float | None, rotation_tolerance: float | None) -> PoseGoal | None:
+    """The goal region that ``--position-tolerance`` and ``--rotation-tolerance`` give around the
+    ``--target`` pose (4, 4) or position (3,) of ``chain``'s tip: a ball of that radius (m), the
+    orientation within that angle (rad) per rotation-vector component; a tolerance not given,
+    or below the IK's precision, is that precision (:data:`IK_RRT_MARGIN`). None without either."""
+    if position_tolerance is None and rotation_tolerance is None:
+        return None
+    if target is None:
+        raise PrehensileError("--position-tolerance, --rotation-tolerance: tolerances of a --target; give one")
+    if planner != "ik_rrt":
+        raise PrehensileError(f"--planner {planner} steps toward the --target itself; the tolerances are for ik_rrt")
+    if rotation_tolerance is not None and target.shape == (3,):
+        raise PrehensileError("--rotation-tolerance: the --target is a position (x y z); give x y z roll pitch yaw")
+    for name, value in (("--position-tolerance", position_tolerance), ("--rotation-tolerance", rotation_tolerance)):
+        if value is not None and not 0.0 <= value < np.inf:
+            raise PrehensileError(f"{name}: must be a finite number >= 0, got {value}")
+    radius, angle = (max(value or 0.0, least) for value, least in zip((position_tolerance, rotation_tolerance),
+                                                                      IK_RRT_MARGIN))
+    position = target if target.shape == (3,) else target[:3, 3]
+    return PoseGoal(model.chain(chain).tip_link, ((Sphere(radius), make_pose(position=position)),),
+                    orientation=None if target.shape == (3,) else target[:3, :3], tolerances=np.full(3, angle),
+                    rotation_vector=True)
+
+
 def plan_report(result, ctx, scene: Path, robot: PlacedRobot, q_goal: np.ndarray | None, target: np.ndarray | None,
-                planner: str, seed: int) -> dict:
+                planner: str, seed: int, region: PoseGoal | None = None) -> dict:
     """The JSON of ``path.json``: start, goal (the configuration reached on success: for a
     target pose, or a continuous joint a whole turn from the one asked, else the one asked)
-    and waypoints in the planned joints, the target pose, the other joints' values, the held
-    objects (link, ``T_link_object``), status and statistics; for an invalid start or goal, why
-    (``reason``, :func:`_end_reason`)."""
+    and waypoints in the planned joints, the target pose and its ``tolerance`` (the ``region``
+    of :func:`tolerance_region`; ``goal_satisfied``: the path ends in it), the other joints'
+    values, the held objects (link, ``T_link_object``), status and statistics; for an invalid
+    start or goal, why (``reason``, :func:`_end_reason`)."""
     space = ctx.space
     fixed = [j for j in robot.model.joint_names if j not in space.joint_names]
     if result.success:
         q_goal = result.path[-1]
+    tolerance = satisfied = None
+    if region is not None:
+        tolerance = {"position_m": region.regions[0][0].radius,
+                     "rotation_rad": None if region.orientation is None else float(region.tolerances[0])}
+        if result.success:
+            T_world_tip = link_pose(robot.model, q_goal, region.link, T_world_base=robot.T_world_base)
+            satisfied = region.satisfied(np.eye(4), T_world_tip)
     return {
         "scene": str(scene), "robot": robot.name, "planner": planner, "seed": seed, "status": result.status.value,
         "joint_names": list(space.joint_names), "start": space.active(robot.configuration).tolist(),
         "goal": None if q_goal is None else space.active(q_goal).tolist(),
-        "target": None if target is None else target.tolist(),
+        "target": None if target is None else target.tolist(), "tolerance": tolerance, "goal_satisfied": satisfied,
         "waypoints": space.active(result.path).tolist() if result.success else [],
         "fixed_joints": {j: float(space.q_ref[robot.model.joint_index(j)]) for j in fixed},
         "held_objects": {obj.name: {"link": obj.link, "T_link_object": np.asarray(obj.T_link_object).tolist()}
@@ -233,6 +273,12 @@ def plan(
                                                "position alone: --target x y z (ik_rrt)."),
     planner: Optional[str] = typer.Option(None, "--planner", help="rrt_connect (to a configuration; the default) "
                                           "or, to a --target pose, ik_rrt (the default) or jplus_rrt."),
+    position_tolerance: Optional[float] = typer.Option(
+        None, "--position-tolerance", metavar="M", help="ik_rrt: the tip may end anywhere within M m of the "
+        "--target position (default: the IK's own precision, 0.2 mm)."),
+    rotation_tolerance: Optional[float] = typer.Option(
+        None, "--rotation-tolerance", metavar="RAD", help="ik_rrt: the tip's orientation may differ from the "
+        "--target's by up to RAD about each axis (rotation vector; default: the IK's own precision, 2 mrad)."),
     budget: float = typer.Option(1.0, "--budget", help="Search time limit (s)."),
     ball_radius: Optional[float] = BALL_RADIUS_OPTION,
     seed: int = typer.Option(0, "--seed", help="Random seed."),
@@ -284,6 +330,7 @@ def plan(
     if pose is not None and pose.shape == (3,) and planner == "jplus_rrt":
         raise PrehensileError("--planner jplus_rrt steps toward a full pose: give --target x y z roll pitch yaw, "
                               "or plan to a position with ik_rrt")
+    region = tolerance_region(model, chain, pose, planner, position_tolerance, rotation_tolerance)
     q_goal = None if target else goal_configuration(placed, joints, values, scene_goal)
     q_start = placed.configuration
     obstacles = loaded.collision_obstacles(placed.name) + [o for r in loaded.robots if r.name != placed.name
@@ -294,9 +341,13 @@ def plan(
     if pose is None:
         result = rrt_connect(context, q_start, q_goal, settings=RRTConnectSettings(time_budget_s=budget),
                              rng=np.random.default_rng(seed))
-    else:
+    elif region is None:
         result = plan_to_pose(context, q_start, pose, chain, planner, budget, seed)
-    report = plan_report(result, context, path, placed, q_goal, pose, planner, seed)
+    else:
+        first, more = region_targets(region, np.eye(4), link_pose(model, q_start, region.link,
+                                                                  T_world_base=placed.T_world_base))
+        result = plan_to_pose(context, q_start, first, chain, planner, budget, seed, more_targets=more)
+    report = plan_report(result, context, path, placed, q_goal, pose, planner, seed, region)
     written = write_outputs(result, context, loaded, placed, report, out)
     stats = result.stats
     console.print(f"status: [{'green' if result.success else 'bold red'}]{result.status.value}[/]  "

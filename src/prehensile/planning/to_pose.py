@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from functools import partial
 from typing import Callable
 
 import numpy as np
@@ -14,6 +15,20 @@ from prehensile.planning.jplus_rrt import JPlusRRTSettings, jplus_rrt
 from prehensile.planning.result import PlanResult
 
 POSE_PLANNERS = ("ik_rrt", "jplus_rrt")
+
+IK_RRT_MARGIN = (2.0 * JacobianIKSettings.position_tolerance, 2.0 * JacobianIKSettings.rotation_tolerance)
+"""(m, rad) how far inside a goal region's bounds IK-RRT's targets stay (:func:`region_targets`):
+twice its IK's tolerances, so that the configurations it finds lie in the region."""
+
+
+def region_targets(goal, T_world_frame: np.ndarray, T_world_link: np.ndarray
+                   ) -> tuple[np.ndarray, Callable[[np.random.Generator], np.ndarray]]:
+    """IK-RRT's targets (``target``, ``more_targets`` of :func:`plan_to_pose`) for a goal region
+    ``goal`` (a :class:`~prehensile.scene.PoseGoal`, its frame at world pose T_world_frame
+    (4, 4)): first the target nearest to the constrained link's start pose T_world_link (4, 4),
+    then random ones, all :data:`IK_RRT_MARGIN` inside the region's bounds."""
+    return (goal.closest(T_world_frame, T_world_link, IK_RRT_MARGIN),
+            partial(goal.sample, T_world_frame=T_world_frame, margin=IK_RRT_MARGIN))
 
 
 def plan_to_pose(ctx: PlanningContext, q_start: np.ndarray, target: np.ndarray, chain: str, planner: str = "ik_rrt",
@@ -32,7 +47,7 @@ def plan_to_pose(ctx: PlanningContext, q_start: np.ndarray, target: np.ndarray, 
         rng: random source or seed.
         more_targets: (ik_rrt only) further targets like ``target``, drawn anew for each IK
             sample after the first (:func:`~prehensile.planning.ik_rrt.grasp_sampler`), e.g.
-            random poses of a goal region (:meth:`prehensile.scene.PoseGoal.sample`).
+            random poses of a goal region (:func:`region_targets`).
 
     Raises:
         PrehensileError: an unknown planner, a position target or ``more_targets`` for jplus_rrt.
