@@ -85,8 +85,8 @@ class PoseGoal:
                 ) -> np.ndarray:
         """The target (as :meth:`sample`) nearest to the point frame of the link at world pose
         T_world_link (4, 4): the point moved to the nearest point of the shrunk regions, each
-        angle clipped into its tolerance less the margin. The link's own pose (up to rounding)
-        if it meets the constraints with the margin to spare."""
+        angle clipped into its tolerance less the margin: the point frame's own pose (up to
+        rounding) if the link meets the constraints with the margin to spare."""
         point = np.linalg.solve(T_world_frame, T_world_link @ np.append(self.offset, 1.0))
         candidates = []
         for shape, T_frame_region in self.regions:
