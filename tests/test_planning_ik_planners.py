@@ -251,6 +251,21 @@ def test_settings_are_validated():
             JPlusRRTSettings(**bad)
 
 
+def test_rounds_that_never_search_end_in_a_status(panda_scene):
+    """A sampler whose every goal the planner rejects (here: beyond a joint limit) makes rounds
+    that end before searching; they no longer double the round size (which overflowed after
+    about 56 such rounds, e.g. after a restart on covering balls that reject every IK goal)."""
+    from prehensile.planning import GoalSampler
+
+    ctx, _, q0, _ = panda_scene
+    beyond = q0.copy()
+    beyond[ctx.space.indices[0]] = ctx.model.upper[ctx.space.indices[0]] + 0.5
+    calls = []
+    sampler = GoalSampler("beyond", q0, lambda rng, call, attempts, budget: (calls.append(call) or beyond, {}))
+    result = ik_rrt(ctx, q0, sampler, IKRRTSettings(time_budget_s=0.2), rng=0)
+    assert result.status is PlanStatus.TIMEOUT and len(calls) > 100 and result.stats.iterations == 0
+
+
 def test_unreachable_goals_are_statuses_within_budget(panda_scene):
     ctx, solver, q0, goals = panda_scene
     far = np.eye(4)

@@ -14,7 +14,8 @@ request whose goal is a pose (MoveIt position and orientation constraints,
 :class:`~prehensile.scene.pose_goal.PoseGoal`) needs a pose planner (the link must be the
 group's tip or a link fixed to it, the frame the world or a link the group does not move):
 IK-RRT samples goals anywhere in the regions and tolerances (its first IK aims at the pose
-nearest to the start's: a start that meets the goal is a goal), J+-RRT steps toward the first
+nearest to the start's: a start that meets the goal with its margin to spare,
+:data:`~prehensile.planning.to_pose.IK_RRT_MARGIN`, is a goal), J+-RRT steps toward the first
 region's centre with the wanted orientation. Every path's end is checked against the request's
 constraints (``goal_satisfied``): a path that ends outside them counts as unsolved.
 

@@ -110,6 +110,9 @@ class IKRRTSettings:
                      first_round_iterations=at_least(1))
 
 
+MAX_ROUND_ITERATIONS = 1 << 40  # the rounds' doubling stops here (no search gets near it in its budget)
+
+
 class _Search:
     """One IK-RRT: the search, what each goal configuration found so far reached, and the next
     round's budget."""
@@ -136,7 +139,9 @@ class _Search:
         if not self.infos or remaining <= 0:
             return None
         result = self.search.solve(remaining, self.round_iterations)
-        self.round_iterations *= 2
+        # a round that ended before searching (e.g. every goal rejected) does not grow the next
+        if result.stats.iterations:
+            self.round_iterations = min(2 * self.round_iterations, MAX_ROUND_ITERATIONS)
         s = result.stats
         self.iterations += s.iterations
         self.nodes = max(self.nodes, s.nodes)

@@ -19,7 +19,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from prehensile.model.geometry import Box, Cylinder, Sphere
+from prehensile.errors import PrehensileError
 from prehensile.spatial import axis_angle_to_matrix, make_pose, rotation_error
+from prehensile.spatial.transforms import check_one_pose
 
 SLACK = 1e-9
 """m or rad added to every bound of :meth:`PoseGoal.satisfied` (rounding)."""
@@ -51,6 +53,22 @@ class PoseGoal:
     tolerances: np.ndarray = field(default_factory=lambda: np.zeros(3))
     rotation_vector: bool = False
 
+    def __post_init__(self) -> None:
+        where = f"PoseGoal of link '{self.link}'"
+        if not self.regions:
+            raise PrehensileError(f"{where}: no regions; give at least one (Box | Sphere | Cylinder, T_frame_region)")
+        for k, region in enumerate(self.regions):
+            if len(region) != 2 or not isinstance(region[0], (Box, Sphere, Cylinder)):
+                raise PrehensileError(f"{where}: regions[{k}] must be (Box | Sphere | Cylinder, T_frame_region (4, 4))")
+            check_one_pose(region[1], f"{where}: regions[{k}] pose")
+        for name, value in (("offset", self.offset), ("tolerances", self.tolerances)):
+            if np.shape(value) != (3,) or not np.all(np.isfinite(value)):
+                raise PrehensileError(f"{where}: {name} must be 3 finite numbers, got {value!r}")
+        if np.any(np.asarray(self.tolerances) < 0):
+            raise PrehensileError(f"{where}: tolerances must be >= 0 (rad), got {self.tolerances!r}")
+        if self.orientation is not None:
+            check_one_pose(make_pose(self.orientation), f"{where}: orientation")
+
     @property
     def T_link_point(self) -> np.ndarray:
         """(4, 4) the constrained point's frame: the link frame moved by ``offset``."""
@@ -70,14 +88,13 @@ class PoseGoal:
         """A random target of the point frame (:attr:`T_link_point`) that meets the constraints:
         a pose (4, 4), or without an orientation constraint a position (3,) (m), in the world.
 
-        The point is uniform in the regions shrunk by ``margin[0]`` (m) (a region chosen in
-        proportion to its volume), each angle uniform within its tolerance less ``margin[1]``
-        (rad); a region or tolerance smaller than its margin gives its centre.
+        The point is uniform in one of the regions shrunk by ``margin[0]`` (m), each region as
+        likely (a small reachable one beside a large unreachable one is drawn as often), each
+        angle uniform within its tolerance less ``margin[1]`` (rad); a region or tolerance
+        smaller than its margin gives its centre.
         """
-        shrunk = [_shrunk(shape, margin[0]) for shape, _ in self.regions]
-        volumes = np.array([_volume(kind, half) for kind, half in shrunk])
-        k = rng.choice(len(shrunk), p=volumes / volumes.sum()) if volumes.sum() > 0 else rng.integers(len(shrunk))
-        point = self.regions[k][1] @ np.append(_draw(*shrunk[k], rng), 1.0)
+        shape, T_frame_region = self.regions[rng.integers(len(self.regions))]
+        point = T_frame_region @ np.append(_draw(*_shrunk(shape, margin[0]), rng), 1.0)
         bounds = self._angle_bounds(margin[1])
         return self._target(T_world_frame, point[:3], rng.uniform(-bounds, bounds))
 
@@ -152,15 +169,6 @@ def _shrunk(shape, margin: float) -> tuple[str, np.ndarray]:
     else:
         raise TypeError(f"a goal region is a Box, Sphere or Cylinder, got {type(shape).__name__}")
     return kind, np.maximum(half - margin, 0.0)
-
-
-def _volume(kind: str, half: np.ndarray) -> float:
-    """Volume (m^3) of a shrunk region (:func:`_shrunk`)."""
-    if kind == "box":
-        return float(np.prod(2.0 * half))
-    if kind == "sphere":
-        return float(4.0 / 3.0 * np.pi * half[0] ** 3)
-    return float(2.0 * np.pi * half[0] ** 2 * half[1])
 
 
 def _draw(kind: str, half: np.ndarray, rng: np.random.Generator) -> np.ndarray:
