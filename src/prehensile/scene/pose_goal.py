@@ -164,10 +164,8 @@ def _shrunk(shape, margin: float) -> tuple[str, np.ndarray]:
         kind, half = "box", 0.5 * np.asarray(shape.size, dtype=float)
     elif isinstance(shape, Sphere):
         kind, half = "sphere", np.array([shape.radius])
-    elif isinstance(shape, Cylinder):
+    else:  # a Cylinder (PoseGoal accepts no other region)
         kind, half = "cylinder", np.array([shape.radius, 0.5 * shape.length])
-    else:
-        raise TypeError(f"a goal region is a Box, Sphere or Cylinder, got {type(shape).__name__}")
     return kind, np.maximum(half - margin, 0.0)
 
 
