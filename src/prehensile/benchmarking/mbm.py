@@ -53,7 +53,8 @@ from prehensile.collision.spheres import SphereModel, generate_sphere_model, pad
 from prehensile.errors import PrehensileError
 from prehensile.kinematics import link_pose
 from prehensile.model.robot_model import RobotModel
-from prehensile.planning.to_pose import POSE_PLANNERS, region_targets
+from prehensile.planning import PlanningContext, RRTConnectSettings, rrt_connect
+from prehensile.planning.to_pose import POSE_PLANNERS, plan_to_pose, region_targets
 from prehensile.scene.moveit import MBMProblem, iter_mbm_problems
 from prehensile.settings import FINITE_POSITIVE, POSITIVE, at_least, check_fields
 from prehensile.spatial import invert, rotation_error
@@ -199,8 +200,6 @@ class PreparedProblem:
 
     def __init__(self, model: RobotModel, spheres: tuple[SphereModel, SphereModel | None], problem: MBMProblem,
                  settings: MBMSettings) -> None:
-        from prehensile.planning import PlanningContext
-
         self.problem = problem
         joints = planned_joints(model, problem)
         check_request(model, problem, joints)
@@ -273,21 +272,15 @@ def pose_goal_frames(model: RobotModel, problem: MBMProblem, tip: str, q_start: 
             raise PrehensileError(f"{where}: {what} '{name}' is not {'the world or ' * (what != 'link_name')}a link "
                                   f"of robot '{model.name}'")
     planned = set(model.chain_q_indices(problem.request.group).tolist())
-    if goal.frame and _moved_by(model, goal.frame, planned):
+    if goal.frame and model.variables_to_root(goal.frame) & planned:
         raise PrehensileError(f"{where}: header.frame_id '{goal.frame}' is moved by group '{problem.request.group}'; "
                               "give the constraints in the world or in a link the group does not move")
-    if _moved_by(model, goal.link, planned) != _moved_by(model, tip, planned):
+    if model.variables_to_root(goal.link) & planned != model.variables_to_root(tip) & planned:
         raise PrehensileError(f"{where}: link_name '{goal.link}' moves relative to the tip '{tip}' of group "
                               f"'{problem.request.group}'; constrain the tip or a link fixed to it")
     T_world_frame = link_pose(model, q_start, goal.frame, T_world_base=T_world_base) if goal.frame else np.eye(4)
     T_tip_link = invert(link_pose(model, q_start, tip)) @ link_pose(model, q_start, goal.link)
     return T_world_frame, T_tip_link @ goal.T_link_point
-
-
-def _moved_by(model: RobotModel, link: str, planned: set[int]) -> set[int]:
-    """The variables of ``planned`` (indices into q) on the path from ``link`` to the root:
-    two links with the same set keep their relative pose whatever those joints do."""
-    return {int(model.joint_q_index[i]) for i in model.path_to_root(link)} & planned
 
 
 def _unplanned_outside(model: RobotModel, q_start: np.ndarray, joints: Sequence[str]) -> np.ndarray:
@@ -346,9 +339,6 @@ def _ours(prepared: PreparedProblem, settings: MBMSettings) -> dict:
 
 def _plan(prepared: PreparedProblem, settings: MBMSettings, rng: np.random.Generator | None = None):
     """Our planner's PlanResult on one problem."""
-    from prehensile.planning import RRTConnectSettings, rrt_connect
-    from prehensile.planning.to_pose import plan_to_pose
-
     if prepared.target is None:
         return rrt_connect(prepared.ctx, prepared.q_start, prepared.q_goal,
                            settings=RRTConnectSettings(time_budget_s=settings.time_budget_s), rng=rng)

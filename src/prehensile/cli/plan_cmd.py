@@ -341,11 +341,9 @@ def plan(
     if pose is None:
         result = rrt_connect(context, q_start, q_goal, settings=RRTConnectSettings(time_budget_s=budget),
                              rng=np.random.default_rng(seed))
-    elif region is None:
-        result = plan_to_pose(context, q_start, pose, chain, planner, budget, seed)
     else:
-        first, more = region_targets(region, np.eye(4), link_pose(model, q_start, region.link,
-                                                                  T_world_base=placed.T_world_base))
+        first, more = (pose, None) if region is None else region_targets(
+            region, np.eye(4), link_pose(model, q_start, region.link, T_world_base=placed.T_world_base))
         result = plan_to_pose(context, q_start, first, chain, planner, budget, seed, more_targets=more)
     report = plan_report(result, context, path, placed, q_goal, pose, planner, seed, region)
     written = write_outputs(result, context, loaded, placed, report, out)

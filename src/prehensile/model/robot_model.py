@@ -192,6 +192,12 @@ class RobotModel:
             index = int(self.link_parent[index])
         return path
 
+    def variables_to_root(self, link: str | int) -> set[int]:
+        """Indices into q of the variables of the joints from ``link`` up to the root (a mimic
+        joint counts as its leader's; -1 stands for fixed joints): two links with the same set,
+        less the variables held still, keep their relative pose."""
+        return {int(self.joint_q_index[k]) for k in self.path_to_root(link)}
+
     def mimic_of(self, link: str | int) -> str | None:
         """Name of the joint whose variable moves ``link``'s joint if that joint is a mimic joint
         (it follows another joint, scaled or offset), else None."""

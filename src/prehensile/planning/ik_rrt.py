@@ -372,13 +372,10 @@ def _arm_pairs(ctx: PlanningContext, arm: ChainSolver) -> np.ndarray:
     arm's joints move and a link whose pose relative to the arm's base only they change."""
     model, planned = ctx.collision_model, set(ctx.space.indices.tolist())
     own = set(arm.var_q.tolist())
-    below = {int(model.joint_q_index[k]) for k in model.path_to_root(arm.chain.base_link)}
-
-    def planned_joints(link: int) -> set[int]:
-        return {int(model.joint_q_index[k]) for k in model.path_to_root(link)} & planned
-
-    moved = np.array([bool(planned_joints(link) & own) for link in range(model.n_links)])
-    steady = np.array([not planned_joints(link) - own - below for link in range(model.n_links)])
+    below = model.variables_to_root(arm.chain.base_link)
+    moving = [model.variables_to_root(link) & planned for link in range(model.n_links)]
+    moved = np.array([bool(variables & own) for variables in moving])
+    steady = np.array([not variables - own - below for variables in moving])
     pairs = moved[:, None] & steady[None, :]
     return pairs | pairs.T
 
