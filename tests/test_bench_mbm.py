@@ -231,7 +231,8 @@ def test_pose_goals_of_moveit_requests_are_met_by_the_pose_planners(tmp_path):
         assert overall["colliding_paths"] == 0 and overall["goal_unsatisfied"] == 0
         assert all(run["goal_satisfied"] for run in runs)
         assert f"pose goals: {len(runs)} of {len(runs)} paths end within" in " ".join(result.output.split())
-        assert runs[0]["goal_error_m"] <= 1e-3 and runs[0]["goal_error_rad"] <= np.sqrt(3) * 1e-2
+        # from the region's centre: within the 2 cm box and 0.01 rad per axis
+        assert runs[0]["goal_error_m"] <= np.sqrt(3) * 1e-2 and runs[0]["goal_error_rad"] <= np.sqrt(3) * 1e-2
     assert runs[0]["goal_error_rad"] is not None
     # tolerances no planner meets: the path counts as unsolved, its status stays the planner's
     request = folder / "request0001.yaml"

@@ -11,11 +11,12 @@ from prehensile.collision import Obstacle
 from prehensile.collision.spheres import generate_sphere_model
 from prehensile.errors import PrehensileError
 from prehensile.ik import ChainSolver, ObjectRegion
-from prehensile.model.geometry import Box, Cylinder
+from prehensile.model.geometry import Box, Cylinder, Sphere
 from prehensile.planning import PlanningContext, PlanStatus, certify_path
 from prehensile.planning.ik_rrt import (IKRRTSettings, _Search, dual_arm_sampler, grasp_sampler, ik_rrt,
                                         multi_eef_rrt, regrasp_sampler)
 from prehensile.planning.jplus_rrt import JPlusRRTSettings, jplus_rrt, regrasp_jplus_rrt
+from prehensile.scene import PoseGoal
 from prehensile.spatial import invert, make_pose, rotation_error
 
 
@@ -393,5 +394,32 @@ def test_plan_to_pose_names_the_valid_planners_and_targets():
                                      ("jplus_rrt", np.zeros(3), "jplus_rrt steps toward a full pose")]:
         with pytest.raises(PrehensileError, match=message):
             plan_to_pose(ctx, q, target, "arm", planner)
-    with pytest.raises(PrehensileError, match="jplus_rrt steps toward fixed poses: more_targets is for ik_rrt"):
-        plan_to_pose(ctx, q, np.eye(4), "arm", "jplus_rrt", more_targets=lambda rng: np.eye(4))
+    region = PoseGoal("panda_hand_tcp", ((Sphere(0.1), make_pose(position=[0.4, 0.0, 0.4])),))
+    with pytest.raises(PrehensileError, match="a region is the goal: give target=None and T_tip_tcp=None with it"):
+        plan_to_pose(ctx, q, np.eye(4), "arm", "ik_rrt", region=(region, np.eye(4)))
+    with pytest.raises(PrehensileError, match="goal of link 'panda_hand_tcp' has no orientation constraint; use ik_rrt"):
+        plan_to_pose(ctx, q, None, "arm", "jplus_rrt", region=(region, np.eye(4)))
+
+
+@pytest.mark.parametrize("planner", ["ik_rrt", "jplus_rrt"])
+def test_plan_to_pose_ends_in_a_goal_region(panda_scene, planner):
+    """Both pose planners plan into a MoveIt-style goal region (a box beyond the wall, the
+    orientation within 0.2 rad per XYZ Euler angle, the constrained point 5 cm ahead of the hand
+    link): the path is valid and ends inside the region; a region that holds the start is
+    reached where the path begins, without moving."""
+    from prehensile.kinematics import link_pose
+    from prehensile.planning import plan_to_pose
+
+    ctx, solver, q0, goals = panda_scene
+    tip, offset = solver.chain.tip_link, np.array([0.0, 0.0, 0.05])
+    region = PoseGoal(tip, ((Box((0.04, 0.04, 0.04)), make_pose(position=(goals[0] @ [*offset, 1.0])[:3])),),
+                      offset=offset, orientation=goals[0][:3, :3], tolerances=np.full(3, 0.2))
+    result = plan_to_pose(ctx, q0, None, "arm", planner, 5.0, 3, region=(region, np.eye(4)))
+    assert result.success, result.info
+    assert_valid_path(ctx, result.path, q0)
+    assert region.satisfied(np.eye(4), link_pose(ctx.model, result.path[-1], tip))
+    T_start = link_pose(ctx.model, q0, tip)
+    around_start = PoseGoal(tip, ((Sphere(0.05), make_pose(position=(T_start @ [*offset, 1.0])[:3])),),
+                            offset=offset, orientation=T_start[:3, :3], tolerances=np.full(3, 0.2))
+    result = plan_to_pose(ctx, q0, None, "arm", planner, 5.0, 3, region=(around_start, np.eye(4)))
+    assert result.success and np.all(result.path == q0)

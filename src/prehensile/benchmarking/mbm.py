@@ -15,9 +15,10 @@ request whose goal is a pose (MoveIt position and orientation constraints,
 group's tip or a link fixed to it, the frame the world or a link the group does not move):
 IK-RRT samples goals anywhere in the regions and tolerances (its first IK aims at the pose
 nearest to the start's: a start that meets the goal with its margin to spare,
-:data:`~prehensile.planning.to_pose.IK_RRT_MARGIN`, is a goal), J+-RRT steps toward the first
-region's centre with the wanted orientation. Every path's end is checked against the request's
-constraints (``goal_satisfied``): a path that ends outside them counts as unsolved.
+:data:`~prehensile.planning.to_pose.REGION_MARGINS`, is a goal), J+-RRT steps toward the pose
+of the regions nearest to the tool (:func:`~prehensile.planning.to_pose.plan_to_pose`). Every
+path's end is checked against the request's constraints (``goal_satisfied``): a path that
+ends outside them counts as unsolved.
 
 Measured per problem and planner:
 
@@ -54,7 +55,7 @@ from prehensile.errors import PrehensileError
 from prehensile.kinematics import link_pose
 from prehensile.model.robot_model import RobotModel
 from prehensile.planning import PlanningContext, RRTConnectSettings, rrt_connect
-from prehensile.planning.to_pose import POSE_PLANNERS, plan_to_pose, region_targets
+from prehensile.planning.to_pose import POSE_PLANNERS, plan_to_pose
 from prehensile.scene.moveit import MBMProblem, iter_mbm_problems
 from prehensile.settings import FINITE_POSITIVE, POSITIVE, at_least, check_fields
 from prehensile.spatial import invert, rotation_error
@@ -209,7 +210,7 @@ class PreparedProblem:
         self.tip = goal_tip(model, problem, settings.planner)
         # the pose planners' goal: the world pose (4, 4) or position (3,) of the tool frame T_tip_tcp on
         # the tip link; for a joint goal the tip link's pose at the goal configuration
-        self.T_tip_tcp = self.T_world_frame = self.target = self.more_targets = None
+        self.T_tip_tcp = self.T_world_frame = self.target = None
         pose_goal = problem.request.pose_goal
         if pose_goal is not None:
             self.T_world_frame, self.T_tip_tcp = pose_goal_frames(model, problem, self.tip, self.q_start,
@@ -217,12 +218,6 @@ class PreparedProblem:
             self.target, self.q_goal = pose_goal.target(self.T_world_frame), None
         elif self.tip is not None:
             self.target = link_pose(model, self.q_goal, self.tip, T_world_base=T_world_base)
-        # what the pose planner aims at first: the target, or for IK-RRT and a pose goal the pose of
-        # the goal region nearest to the start, then random poses of the region (more_targets)
-        self.first_target = self.target
-        if pose_goal is not None and settings.planner == "ik_rrt":
-            T_world_link = link_pose(model, self.q_start, pose_goal.link, T_world_base=T_world_base)
-            self.first_target, self.more_targets = region_targets(pose_goal, self.T_world_frame, T_world_link)
         self.ctx = PlanningContext(model, scene.collision_obstacles(robot), joints=joints, q_ref=self.q_start,
                                    T_world_base=T_world_base, spheres=spheres[0], cover=spheres[1],
                                    attached=scene.attached_objects(robot), resolution=settings.resolution,
@@ -342,8 +337,12 @@ def _plan(prepared: PreparedProblem, settings: MBMSettings, rng: np.random.Gener
     if prepared.target is None:
         return rrt_connect(prepared.ctx, prepared.q_start, prepared.q_goal,
                            settings=RRTConnectSettings(time_budget_s=settings.time_budget_s), rng=rng)
-    return plan_to_pose(prepared.ctx, prepared.q_start, prepared.first_target, prepared.problem.request.group,
-                        settings.planner, settings.time_budget_s, rng, prepared.T_tip_tcp, prepared.more_targets)
+    request = prepared.problem.request
+    if request.pose_goal is not None:
+        return plan_to_pose(prepared.ctx, prepared.q_start, None, request.group, settings.planner,
+                            settings.time_budget_s, rng, region=(request.pose_goal, prepared.T_world_frame))
+    return plan_to_pose(prepared.ctx, prepared.q_start, prepared.target, request.group, settings.planner,
+                        settings.time_budget_s, rng)
 
 
 def _ompl(prepared: PreparedProblem, settings: MBMSettings) -> dict:

@@ -7,7 +7,7 @@ The start is the robot's configuration in the scene. The goal is a configuration
 configurations sampled by IK during the search) or J+-RRT (Jacobian steps toward the pose),
 or a world position of the tip (``--target x y z``, any orientation: for arms with fewer than
 six joints, such as NAO's), planned with IK-RRT. With ``--position-tolerance`` and
-``--rotation-tolerance`` IK-RRT may end anywhere in that region around the target
+``--rotation-tolerance`` the pose planner may end anywhere in that region around the target
 (:func:`tolerance_region`).
 The planned joints are ``--chain``'s, else the joints the scene's goal names, else all of the
 robot's; joints not planned stay at their start values. The world is the scene's obstacles
@@ -41,7 +41,7 @@ from prehensile.errors import PrehensileError, SceneError, UnknownFrameError, mi
 from prehensile.kinematics import link_pose
 from prehensile.model.geometry import Sphere
 from prehensile.model.robot_model import RobotModel
-from prehensile.planning.to_pose import IK_RRT_MARGIN, POSE_PLANNERS, plan_to_pose, region_targets
+from prehensile.planning.to_pose import POSE_PLANNERS, REGION_MARGINS, plan_to_pose
 from prehensile.scene.pose_goal import PoseGoal
 from prehensile.scene.scene import Body, PlacedRobot, Scene
 from prehensile.spatial import make_pose
@@ -124,20 +124,19 @@ def tolerance_region(model: RobotModel, chain: str | None, target: np.ndarray | 
     """The goal region that ``--position-tolerance`` and ``--rotation-tolerance`` give around the
     ``--target`` pose (4, 4) or position (3,) of ``chain``'s tip: a ball of that radius (m), the
     orientation within that angle (rad) per rotation-vector component; a tolerance not given,
-    or below the IK's precision, is that precision (:data:`IK_RRT_MARGIN`). None without either."""
+    or below the planner's precision, is that precision (:data:`REGION_MARGINS`). None without
+    either."""
     if position_tolerance is None and rotation_tolerance is None:
         return None
     if target is None:
         raise PrehensileError("--position-tolerance, --rotation-tolerance: tolerances of a --target; give one")
-    if planner != "ik_rrt":
-        raise PrehensileError(f"--planner {planner} steps toward the --target itself; the tolerances are for ik_rrt")
     if rotation_tolerance is not None and target.shape == (3,):
         raise PrehensileError("--rotation-tolerance: the --target is a position (x y z); give x y z roll pitch yaw")
     for name, value in (("--position-tolerance", position_tolerance), ("--rotation-tolerance", rotation_tolerance)):
         if value is not None and not 0.0 <= value < np.inf:
             raise PrehensileError(f"{name}: must be a finite number >= 0, got {value}")
     radius, angle = (max(value or 0.0, least) for value, least in zip((position_tolerance, rotation_tolerance),
-                                                                      IK_RRT_MARGIN))
+                                                                      REGION_MARGINS[planner]))
     position = target if target.shape == (3,) else target[:3, 3]
     return PoseGoal(model.chain(chain).tip_link, ((Sphere(radius), make_pose(position=position)),),
                     orientation=None if target.shape == (3,) else target[:3, :3], tolerances=np.full(3, angle),
@@ -274,11 +273,12 @@ def plan(
     planner: Optional[str] = typer.Option(None, "--planner", help="rrt_connect (to a configuration; the default) "
                                           "or, to a --target pose, ik_rrt (the default) or jplus_rrt."),
     position_tolerance: Optional[float] = typer.Option(
-        None, "--position-tolerance", metavar="M", help="ik_rrt: the tip may end anywhere within M m of the "
-        "--target position (default: the IK's own precision, 0.2 mm)."),
+        None, "--position-tolerance", metavar="M", help="The tip may end anywhere within M m of the "
+        "--target position (default: the planner's own precision: ik_rrt 0.2 mm, jplus_rrt 2 mm)."),
     rotation_tolerance: Optional[float] = typer.Option(
-        None, "--rotation-tolerance", metavar="RAD", help="ik_rrt: the tip's orientation may differ from the "
-        "--target's by up to RAD about each axis (rotation vector; default: the IK's own precision, 2 mrad)."),
+        None, "--rotation-tolerance", metavar="RAD", help="The tip's orientation may differ from the "
+        "--target's by up to RAD about each axis (rotation vector; default: the planner's own precision: ik_rrt "
+        "2 mrad, jplus_rrt 20 mrad)."),
     budget: float = typer.Option(1.0, "--budget", help="Search time limit (s)."),
     ball_radius: Optional[float] = BALL_RADIUS_OPTION,
     seed: int = typer.Option(0, "--seed", help="Random seed."),
@@ -342,9 +342,8 @@ def plan(
         result = rrt_connect(context, q_start, q_goal, settings=RRTConnectSettings(time_budget_s=budget),
                              rng=np.random.default_rng(seed))
     else:
-        first, more = (pose, None) if region is None else region_targets(
-            region, np.eye(4), link_pose(model, q_start, region.link, T_world_base=placed.T_world_base))
-        result = plan_to_pose(context, q_start, first, chain, planner, budget, seed, more_targets=more)
+        result = plan_to_pose(context, q_start, pose if region is None else None, chain, planner, budget, seed,
+                              region=None if region is None else (region, np.eye(4)))
     report = plan_report(result, context, path, placed, q_goal, pose, planner, seed, region)
     written = write_outputs(result, context, loaded, placed, report, out)
     stats = result.stats

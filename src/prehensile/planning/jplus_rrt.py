@@ -27,7 +27,7 @@ the returned path is shortcut and certified with the exact geometry like every p
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from typing import Sequence
+from typing import Callable, Sequence
 
 import numpy as np
 
@@ -44,7 +44,7 @@ from prehensile.planning.seeding import planner_rng
 from prehensile.settings import (
     FINITE_NON_NEGATIVE, FINITE_POSITIVE, NON_NEGATIVE, POSITIVE, UNIT_INTERVAL, at_least, check_fields,
 )
-from prehensile.spatial.transforms import invert
+from prehensile.spatial.transforms import check_one_pose, invert
 
 
 _HALVINGS = 4  # times a Jacobian step that made the error grow is taken again, half as long
@@ -144,27 +144,39 @@ class _Tree:
 
 
 class _PoseGoals:
-    """One tool toward any of the world poses ``targets`` (k, 4, 4)."""
+    """One tool toward any of the world poses ``targets`` (k, 4, 4), or into a goal region:
+    ``targets`` a function from a tool pose (4, 4) to the region's pose nearest to it (4, 4),
+    each step aiming at the pose nearest to where the tool is. In a region a node's ``tools``
+    are its tool pose and that nearest pose (2, 4, 4), so the nearest-node search calls no function."""
 
-    def __init__(self, solver: ChainSolver, targets: np.ndarray, s: JPlusRRTSettings) -> None:
-        self.solver, self.targets, self.s = solver, solver.targets(targets), s
-        self.count = len(self.targets)
+    def __init__(self, solver: ChainSolver, targets: np.ndarray | Callable[[np.ndarray], np.ndarray],
+                 s: JPlusRRTSettings) -> None:
+        self.solver, self.s = solver, s
+        self.closest = targets if callable(targets) else None
+        self.targets = solver.targets(targets) if self.closest is None else None
+        self.count = 1 if self.targets is None else len(self.targets)
         self._scratch = (np.empty((len(solver.table), 3, 4)), np.empty((4, 4)), np.empty((6, solver.n)), np.empty(6))
         self._limits = (solver.model.lower[solver.var_q], solver.model.upper[solver.var_q])
 
     def tools(self, q: np.ndarray) -> np.ndarray:
-        return self.solver.tool_pose(q)[None]
+        tool = self.solver.tool_pose(q)
+        return tool[None] if self.closest is None else np.stack((tool, self._nearest(tool)))
+
+    def _nearest(self, tool: np.ndarray) -> np.ndarray:
+        """The region's pose (4, 4) nearest to the tool pose (4, 4)."""
+        return check_one_pose(self.closest(tool), "J+-RRT: the pose of the goal region nearest to the tool")
 
     def distance(self, tools: np.ndarray, g: int) -> np.ndarray:
-        return _se3_distance(tools[:, 0], self.targets[g], self.s.rotation_weight)
+        return _se3_distance(tools[:, 0], self.targets[g] if self.closest is None else tools[:, 1],
+                             self.s.rotation_weight)
 
-    def step(self, q: np.ndarray, g: int) -> tuple[np.ndarray, float, float]:
-        """(q' (dof,), position and rotation error at q)."""
+    def step(self, q: np.ndarray, tools: np.ndarray, g: int) -> tuple[np.ndarray, float, float]:
+        """(q' (dof,), position and rotation error at q), the node's ``tools`` at q."""
         solver, s = self.solver, self.s
         frames, pose, jac, err = self._scratch
         ik_kernels.chain_pose_jacobian(q, solver.T_world_root, solver.table, solver.var_of_q, solver.T_tip_tcp,
                                        frames, pose, jac)
-        ik_kernels.pose_error(self.targets[g], pose, err)
+        ik_kernels.pose_error(self.targets[g] if self.closest is None else tools[1], pose, err)
         pos_err, rot_err = np.linalg.norm(err[:3]), np.linalg.norm(err[3:])
         err[:3] *= min(1.0, s.max_step_position / max(pos_err, 1e-300))
         err[3:] *= min(1.0, s.max_step_rotation / max(rot_err, 1e-300))
@@ -208,8 +220,8 @@ class _GraspPairGoals:
         w = self.s.rotation_weight
         return _se3_distance(tools[:, 0], T @ grasps[0], w) + _se3_distance(tools[:, 1], T @ grasps[1], w)
 
-    def step(self, q: np.ndarray, g: int) -> tuple[np.ndarray, float, float]:
-        T, grasps = self._object(self.pair.poses(q), g)
+    def step(self, q: np.ndarray, tools: np.ndarray, g: int) -> tuple[np.ndarray, float, float]:
+        T, grasps = self._object(tools, g)
         q_new, _, pos_err, rot_err = self.pair.step(q, T, grasps, free_object=self.objects is None)
         return q_new, pos_err, rot_err
 
@@ -219,7 +231,7 @@ class _GraspPairGoals:
         return {"grasps": (int(i), int(j)), "object_index": int(p), "T_world_object": T}
 
 
-def jplus_rrt(ctx: PlanningContext, q_start: np.ndarray, target_poses: np.ndarray,
+def jplus_rrt(ctx: PlanningContext, q_start: np.ndarray, target_poses: np.ndarray | Callable[[np.ndarray], np.ndarray],
               settings: JPlusRRTSettings = JPlusRRTSettings(), rng: np.random.Generator | int | None = None, *,
               T_tip_tcp: np.ndarray | None = None, chain: str | None = None) -> PlanResult:
     """Plan from ``q_start`` until the tool reaches any of ``target_poses`` (arguments in the
@@ -228,7 +240,11 @@ def jplus_rrt(ctx: PlanningContext, q_start: np.ndarray, target_poses: np.ndarra
     Args:
         ctx: planning context; it plans exactly the joints of the tool's chain (in any order).
         q_start: (dof,) start configuration.
-        target_poses: (k, 4, 4) world tool poses, e.g. ``T_world_object @ grasps``.
+        target_poses: (k, 4, 4) world tool poses, e.g. ``T_world_object @ grasps``; or a goal
+            region: a function from a world tool pose (4, 4) to the region's pose nearest to it
+            (4, 4), each Jacobian step aiming at the pose nearest to the tool (reached within
+            the tolerances of it; :func:`~prehensile.planning.to_pose.plan_to_pose` builds it
+            for a :class:`~prehensile.scene.PoseGoal`).
         settings: :class:`JPlusRRTSettings`.
         rng: random source or seed (:func:`~prehensile.planning.seeding.planner_rng`: seed 0 if None).
         T_tip_tcp: (4, 4) tool frame on the chain's tip link.
@@ -237,7 +253,7 @@ def jplus_rrt(ctx: PlanningContext, q_start: np.ndarray, target_poses: np.ndarra
             different tips need a name).
 
     Returns:
-        :class:`PlanResult`; ``goal_index`` is the grasp reached; ``info`` holds ``attempts``,
+        :class:`PlanResult`; ``goal_index`` is the grasp reached (0 for a region); ``info`` holds ``attempts``,
         ``refined`` (links planned on covering balls, see ``settings.certify_retries``) and,
         if certified, ``certify`` (the last :class:`~prehensile.planning.certify.CertifyReport`).
     """
@@ -372,7 +388,7 @@ def _extend_to_goal(ctx: PlanningContext, tree: _Tree, node: int, g: int, goals,
     exact geometry. Motions are checked at ``res`` (m)."""
     space, last, halvings = ctx.space, np.inf, 0
     for _ in range(s.max_goal_steps):
-        q_new, pos_err, rot_err = goals.step(tree.q[node], g)
+        q_new, pos_err, rot_err = goals.step(tree.q[node], tree.tools[node], g)
         if pos_err <= s.position_tolerance and rot_err <= s.rotation_tolerance:
             return node
         error = pos_err + s.rotation_weight * rot_err

@@ -1,72 +1,104 @@
-"""Planning to a tool pose (or position) with either pose planner: IK-RRT or J+-RRT."""
+"""Planning to a tool pose (or position), or into a goal region, with either pose planner:
+IK-RRT or J+-RRT."""
 
 from __future__ import annotations
 
 from functools import partial
-from typing import Callable
 
 import numpy as np
 
 from prehensile.errors import PrehensileError
 from prehensile.ik import ChainSolver, JacobianIKSettings
+from prehensile.kinematics.forward import link_pose
 from prehensile.planning.context import PlanningContext
 from prehensile.planning.ik_rrt import IKRRTSettings, grasp_sampler, ik_rrt
 from prehensile.planning.jplus_rrt import JPlusRRTSettings, jplus_rrt
 from prehensile.planning.result import PlanResult
+from prehensile.spatial.transforms import invert
 
 POSE_PLANNERS = ("ik_rrt", "jplus_rrt")
 
-IK_RRT_MARGIN = (2.0 * JacobianIKSettings.position_tolerance, 2.0 * JacobianIKSettings.rotation_tolerance)
-"""(m, rad) how far inside a goal region's bounds IK-RRT's targets stay (:func:`region_targets`):
-twice its IK's tolerances, so that the configurations it finds lie in the region."""
+REGION_MARGINS = {
+    "ik_rrt": (2.0 * JacobianIKSettings.position_tolerance, 2.0 * JacobianIKSettings.rotation_tolerance),
+    "jplus_rrt": (2.0 * JPlusRRTSettings.position_tolerance, 2.0 * JPlusRRTSettings.rotation_tolerance),
+}
+"""(m, rad) per pose planner: how far inside a goal region's bounds its targets stay, twice the
+precision to which it reaches a target (its IK's tolerances; J+-RRT's goal tolerances), so that
+the configuration it ends at lies in the region."""
 
 
-def region_targets(goal, T_world_frame: np.ndarray, T_world_link: np.ndarray
-                   ) -> tuple[np.ndarray, Callable[[np.random.Generator], np.ndarray]]:
-    """IK-RRT's targets (``target``, ``more_targets`` of :func:`plan_to_pose`) for a goal region
-    ``goal`` (a :class:`~prehensile.scene.PoseGoal`, its frame at world pose T_world_frame
-    (4, 4)): first the target nearest to the constrained link's start pose T_world_link (4, 4),
-    then random ones, all :data:`IK_RRT_MARGIN` inside the region's bounds."""
-    return (goal.closest(T_world_frame, T_world_link, IK_RRT_MARGIN),
-            partial(goal.sample, T_world_frame=T_world_frame, margin=IK_RRT_MARGIN))
-
-
-def plan_to_pose(ctx: PlanningContext, q_start: np.ndarray, target: np.ndarray, chain: str, planner: str = "ik_rrt",
-                 time_budget_s: float = 1.0, rng: np.random.Generator | int | None = None,
-                 T_tip_tcp: np.ndarray | None = None,
-                 more_targets: Callable[[np.random.Generator], np.ndarray] | None = None) -> PlanResult:
+def plan_to_pose(ctx: PlanningContext, q_start: np.ndarray, target: np.ndarray | None, chain: str,
+                 planner: str = "ik_rrt", time_budget_s: float = 1.0, rng: np.random.Generator | int | None = None,
+                 T_tip_tcp: np.ndarray | None = None, region: tuple | None = None) -> PlanResult:
     """Plan from ``q_start`` (dof,) to any configuration that puts the tool frame (the tip link
     of ``chain`` times ``T_tip_tcp`` (4, 4), default the tip link itself) at the world pose
-    ``target`` (4, 4), or (ik_rrt only) its origin at the world position ``target`` (3,) (m).
+    ``target`` (4, 4), or (ik_rrt only) its origin at the world position ``target`` (3,) (m);
+    or anywhere in a goal ``region``.
 
     Args:
         ctx: planning context that plans the chain's joints.
+        target: the tool's world pose or position; None with a ``region``.
         planner: one of :data:`POSE_PLANNERS`: ``ik_rrt`` (goal configurations sampled by IK
             while the trees grow) or ``jplus_rrt`` (Jacobian steps toward the pose).
         time_budget_s: search time limit (s).
         rng: random source or seed.
-        more_targets: (ik_rrt only) further targets like ``target``, drawn anew for each IK
-            sample after the first (:func:`~prehensile.planning.ik_rrt.grasp_sampler`), e.g.
-            random poses of a goal region (:func:`region_targets`).
+        T_tip_tcp: the tool frame on the tip link; None with a ``region``.
+        region: (:class:`~prehensile.scene.PoseGoal`, T_world_frame (4, 4) the pose of its
+            frame): the goal's constrained point frame is the tool (its link must be the
+            chain's tip or fixed to it). IK-RRT aims its first IK sample at the region's pose
+            nearest to the start, later ones at random poses of the region; J+-RRT steps
+            toward the region's pose nearest to the tool. Both keep :data:`REGION_MARGINS`
+            inside its bounds (a region smaller than that is aimed at its centre).
 
     Raises:
-        PrehensileError: an unknown planner, a position target or ``more_targets`` for jplus_rrt.
+        PrehensileError: an unknown planner, a malformed target, a position target (or a
+            region without orientation) for jplus_rrt, a region given with a target or
+            T_tip_tcp.
     """
     if planner not in POSE_PLANNERS:
         raise PrehensileError(f"planner '{planner}' does not plan to a pose; valid: {', '.join(POSE_PLANNERS)}")
+    more = None
+    if region is not None:
+        if target is not None or T_tip_tcp is not None:
+            raise PrehensileError(f"{planner}: a region is the goal: give target=None and T_tip_tcp=None with it")
+        target, more, T_tip_tcp = _region_goal(ctx, q_start, chain, planner, *region)
+    if planner == "jplus_rrt":
+        if not callable(target):
+            target = _checked_target(target, planner)
+            if target.shape == (3,):
+                raise PrehensileError("jplus_rrt steps toward a full pose: give a (4, 4) target, or plan to a "
+                                      "position with ik_rrt")
+            target = target[None]
+        return jplus_rrt(ctx, q_start, target, JPlusRRTSettings(time_budget_s=time_budget_s), rng,
+                         T_tip_tcp=T_tip_tcp, chain=chain)
+    target = _checked_target(target, planner)
+    solver = ChainSolver(ctx.model, chain, T_tip_tcp=T_tip_tcp, T_world_root=ctx.T_world_base,
+                         settings=JacobianIKSettings(position_only=target.shape == (3,)))
+    return ik_rrt(ctx, q_start, grasp_sampler(ctx, solver, target[None], q_start, more),
+                  IKRRTSettings(time_budget_s=time_budget_s), rng)
+
+
+def _checked_target(target, planner: str) -> np.ndarray:
     target = np.asarray(target, dtype=float)
     if target.shape not in ((4, 4), (3,)):
         raise PrehensileError(f"{planner}: the target must be a (4, 4) pose or a (3,) position, got {target.shape}")
+    return target
+
+
+def _region_goal(ctx: PlanningContext, q_start: np.ndarray, chain: str, planner: str, goal, T_world_frame: np.ndarray):
+    """(target, more_targets, T_tip_tcp) of a region goal for ``planner`` (:func:`plan_to_pose`):
+    for IK-RRT the region's target nearest to the start and a function drawing random ones, for
+    J+-RRT a function from a tool pose to the region's pose nearest to it; the tool frame is the
+    goal's point frame on the chain's tip link (placed as ``q_start`` (dof,) puts it)."""
+    model, margin = ctx.model, REGION_MARGINS[planner]
+    T_tip_link = invert(link_pose(model, q_start, model.chain(chain).tip_link)) @ link_pose(model, q_start, goal.link)
+    T_tip_tcp = T_tip_link @ goal.T_link_point
     if planner == "jplus_rrt":
-        if more_targets is not None:
-            raise PrehensileError("jplus_rrt steps toward fixed poses: more_targets is for ik_rrt")
-        if target.shape == (3,):
-            raise PrehensileError("jplus_rrt steps toward a full pose: give a (4, 4) target, or plan to a position "
-                                  "with ik_rrt")
-        return jplus_rrt(ctx, q_start, target[None], JPlusRRTSettings(time_budget_s=time_budget_s), rng,
-                         T_tip_tcp=T_tip_tcp, chain=chain)
-    solver = ChainSolver(ctx.model, chain, T_tip_tcp=T_tip_tcp, T_world_root=ctx.T_world_base,
-                         settings=JacobianIKSettings(position_only=target.shape == (3,)))
-    more = None if more_targets is None else (lambda rng: np.asarray(more_targets(rng), dtype=float)[None])
-    return ik_rrt(ctx, q_start, grasp_sampler(ctx, solver, target[None], q_start, more),
-                  IKRRTSettings(time_budget_s=time_budget_s), rng)
+        if goal.orientation is None:
+            raise PrehensileError(f"jplus_rrt steps toward a full pose, and the goal of link '{goal.link}' has no "
+                                  "orientation constraint; use ik_rrt")
+        T_point_link = invert(goal.T_link_point)
+        return (lambda T_world_tool: goal.closest(T_world_frame, T_world_tool @ T_point_link, margin)), None, T_tip_tcp
+    T_world_link = link_pose(model, q_start, goal.link, T_world_base=ctx.T_world_base)
+    sample = partial(goal.sample, T_world_frame=T_world_frame, margin=margin)
+    return goal.closest(T_world_frame, T_world_link, margin), lambda rng: np.asarray(sample(rng))[None], T_tip_tcp

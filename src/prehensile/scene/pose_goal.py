@@ -8,8 +8,9 @@ lie within per-axis tolerances of a wanted one, as MoveIt's ``PositionConstraint
 +-pi/2) or as a rotation vector (1), each component within its tolerance.
 
 Planners that sample goals (IK-RRT) draw targets from the region (:meth:`PoseGoal.sample`) and
-start from the one nearest to where the link is (:meth:`PoseGoal.closest`); both keep a margin
-from the region's bounds, so that an IK solution within its own tolerance still meets them.
+start from the one nearest to where the link is (:meth:`PoseGoal.closest`); J+-RRT steps toward
+the one nearest to where the link is at each step. Both keep a margin from the region's bounds,
+so that a planner that reaches a target within its own tolerance still meets them.
 """
 
 from __future__ import annotations
@@ -20,7 +21,7 @@ import numpy as np
 
 from prehensile.model.geometry import Box, Cylinder, Sphere
 from prehensile.errors import PrehensileError
-from prehensile.spatial import axis_angle_to_matrix, make_pose, rotation_error
+from prehensile.spatial import axis_angle_to_matrix, make_pose, rotation_error, rpy_to_matrix
 from prehensile.spatial.transforms import check_one_pose
 
 SLACK = 1e-9
@@ -104,10 +105,10 @@ class PoseGoal:
         T_world_link (4, 4): the point moved to the nearest point of the shrunk regions, each
         angle clipped into its tolerance less the margin: the point frame's own pose (up to
         rounding) if the link meets the constraints with the margin to spare."""
-        point = np.linalg.solve(T_world_frame, T_world_link @ np.append(self.offset, 1.0))
+        point = self._point(T_world_frame, T_world_link)
         candidates = []
         for shape, T_frame_region in self.regions:
-            local = np.linalg.solve(T_frame_region, point)[:3]
+            local = _in_frame(T_frame_region, point)
             nearest = _project(*_shrunk(shape, margin[0]), local)
             candidates.append((np.linalg.norm(nearest - local), (T_frame_region @ np.append(nearest, 1.0))[:3]))
         position = min(candidates, key=lambda c: c[0])[1]
@@ -115,6 +116,10 @@ class PoseGoal:
             return self._target(T_world_frame, position, None)
         bounds = self._angle_bounds(margin[1])
         return self._target(T_world_frame, position, np.clip(self.angles(T_world_frame, T_world_link), -bounds, bounds))
+
+    def _point(self, T_world_frame: np.ndarray, T_world_link: np.ndarray) -> np.ndarray:
+        """(3,) the constrained point of the link at world pose T_world_link (4, 4), in the frame."""
+        return _in_frame(T_world_frame, (T_world_link @ np.append(self.offset, 1.0))[:3])
 
     def _angle_bounds(self, margin: float) -> np.ndarray:
         """(3,) the angles (rad) targets may take: the tolerances less ``margin``, the second
@@ -133,15 +138,15 @@ class PoseGoal:
         if self.rotation_vector:
             angle = np.linalg.norm(angles)
             offset = axis_angle_to_matrix(angles / angle, angle) if angle > 0 else np.eye(3)
-        else:
-            offset = np.linalg.multi_dot([axis_angle_to_matrix(axis, a) for axis, a in zip(np.eye(3), angles)])
+        else:  # Rx(a) Ry(b) Rz(c), the transpose of Rz(-c) Ry(-b) Rx(-a)
+            offset = rpy_to_matrix(-np.asarray(angles)).T
         return make_pose(T_world_frame[:3, :3] @ self.orientation @ offset, position)
 
     def satisfied(self, T_world_frame: np.ndarray, T_world_link: np.ndarray) -> bool:
         """Whether the link at world pose T_world_link (4, 4) meets the constraints, the frame at
         T_world_frame (4, 4)."""
-        point = np.linalg.solve(T_world_frame, T_world_link @ np.append(self.offset, 1.0))
-        if not any(_inside(shape, np.linalg.solve(T_frame_region, point)[:3]) for shape, T_frame_region in self.regions):
+        point = self._point(T_world_frame, T_world_link)
+        if not any(_inside(shape, _in_frame(T_frame_region, point)) for shape, T_frame_region in self.regions):
             return False
         if self.orientation is None:
             return True
@@ -155,6 +160,11 @@ class PoseGoal:
         # R = Rx(a) Ry(b) Rz(c) with b within +-pi/2: small rotations give small angles
         return np.array([np.arctan2(-R[1, 2], R[2, 2]), np.arcsin(np.clip(R[0, 2], -1.0, 1.0)),
                          np.arctan2(-R[0, 1], R[0, 0])])
+
+
+def _in_frame(T: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """The point p (3,) in the frame of the rigid transform T (4, 4)."""
+    return T[:3, :3].T @ (p - T[:3, 3])
 
 
 def _shrunk(shape, margin: float) -> tuple[str, np.ndarray]:
