@@ -403,21 +403,24 @@ def test_plan_to_pose_names_the_valid_planners_and_targets():
 
 @pytest.mark.parametrize("planner", ["ik_rrt", "jplus_rrt"])
 def test_plan_to_pose_ends_in_a_goal_region(panda_scene, planner):
-    """Both pose planners plan into a MoveIt-style goal region (a box beyond the wall, the
-    orientation within 0.2 rad per XYZ Euler angle, the constrained point 5 cm ahead of the hand
-    link): the path is valid and ends inside the region; a region that holds the start is
-    reached where the path begins, without moving."""
+    """Both pose planners plan into a MoveIt-style goal region (a box beyond the wall, 2.4 m
+    long with its centre out of reach, the orientation within 0.2 rad per XYZ Euler angle, the
+    constrained point 5 cm ahead of the tool): the path is valid and ends inside the region,
+    far from its centre; a region that holds the start is reached where the path begins,
+    without moving."""
     from prehensile.kinematics import link_pose
     from prehensile.planning import plan_to_pose
 
     ctx, solver, q0, goals = panda_scene
     tip, offset = solver.chain.tip_link, np.array([0.0, 0.0, 0.05])
-    region = PoseGoal(tip, ((Box((0.04, 0.04, 0.04)), make_pose(position=(goals[0] @ [*offset, 1.0])[:3])),),
-                      offset=offset, orientation=goals[0][:3, :3], tolerances=np.full(3, 0.2))
+    centre = (goals[0] @ [*offset, 1.0])[:3] + [1.18, 0.0, 0.0]  # 1.1 m from the shoulder
+    region = PoseGoal(tip, ((Box((2.4, 0.04, 0.04)), make_pose(position=centre)),), offset=offset,
+                      orientation=goals[0][:3, :3], tolerances=np.full(3, 0.2))
     result = plan_to_pose(ctx, q0, None, "arm", planner, 5.0, 3, region=(region, np.eye(4)))
     assert result.success, result.info
     assert_valid_path(ctx, result.path, q0)
-    assert region.satisfied(np.eye(4), link_pose(ctx.model, result.path[-1], tip))
+    T_end = link_pose(ctx.model, result.path[-1], tip)
+    assert region.satisfied(np.eye(4), T_end) and np.linalg.norm((T_end @ [*offset, 1.0])[:3] - centre) > 0.3
     T_start = link_pose(ctx.model, q0, tip)
     around_start = PoseGoal(tip, ((Sphere(0.05), make_pose(position=(T_start @ [*offset, 1.0])[:3])),),
                             offset=offset, orientation=T_start[:3, :3], tolerances=np.full(3, 0.2))
