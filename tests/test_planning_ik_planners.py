@@ -399,6 +399,9 @@ def test_plan_to_pose_names_the_valid_planners_and_targets():
         plan_to_pose(ctx, q, np.eye(4), "arm", "ik_rrt", region=(region, np.eye(4)))
     with pytest.raises(PrehensileError, match="goal of link 'panda_hand_tcp' has no orientation constraint; use ik_rrt"):
         plan_to_pose(ctx, q, None, "arm", "jplus_rrt", region=(region, np.eye(4)))
+    elbow = PoseGoal("panda_link4", region.regions)
+    with pytest.raises(PrehensileError, match="the goal's link 'panda_link4' moves relative to the tip"):
+        plan_to_pose(ctx, q, None, "arm", "ik_rrt", region=(elbow, np.eye(4)))
 
 
 @pytest.mark.parametrize("planner", ["ik_rrt", "jplus_rrt"])

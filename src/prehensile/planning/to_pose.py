@@ -90,8 +90,12 @@ def _region_goal(ctx: PlanningContext, q_start: np.ndarray, chain: str, planner:
     for IK-RRT the region's target nearest to the start and a function drawing random ones, for
     J+-RRT a function from a tool pose to the region's pose nearest to it; the tool frame is the
     goal's point frame on the chain's tip link (placed as ``q_start`` (dof,) puts it)."""
-    model, margin = ctx.model, REGION_MARGINS[planner]
-    T_tip_link = invert(link_pose(model, q_start, model.chain(chain).tip_link)) @ link_pose(model, q_start, goal.link)
+    model, margin, tip = ctx.model, REGION_MARGINS[planner], ctx.model.chain(chain).tip_link
+    planned = set(ctx.space.indices.tolist())
+    if model.variables_to_root(goal.link) & planned != model.variables_to_root(tip) & planned:
+        raise PrehensileError(f"{planner}: the goal's link '{goal.link}' moves relative to the tip '{tip}' of "
+                              f"chain '{chain}'; constrain the tip or a link fixed to it")
+    T_tip_link = invert(link_pose(model, q_start, tip)) @ link_pose(model, q_start, goal.link)
     T_tip_tcp = T_tip_link @ goal.T_link_point
     if planner == "jplus_rrt":
         if goal.orientation is None:
