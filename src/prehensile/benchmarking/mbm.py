@@ -55,10 +55,10 @@ from prehensile.errors import PrehensileError
 from prehensile.kinematics import link_pose
 from prehensile.model.robot_model import RobotModel
 from prehensile.planning import PlanningContext, RRTConnectSettings, rrt_connect
-from prehensile.planning.to_pose import POSE_PLANNERS, plan_to_pose
+from prehensile.planning.to_pose import POSE_PLANNERS, plan_to_pose, region_tool_frame
 from prehensile.scene.moveit import MBMProblem, iter_mbm_problems
 from prehensile.settings import FINITE_POSITIVE, POSITIVE, at_least, check_fields
-from prehensile.spatial import invert, rotation_error
+from prehensile.spatial import rotation_error
 
 log = logging.getLogger(__name__)
 
@@ -270,12 +270,12 @@ def pose_goal_frames(model: RobotModel, problem: MBMProblem, tip: str, q_start: 
     if goal.frame and model.variables_to_root(goal.frame) & planned:
         raise PrehensileError(f"{where}: header.frame_id '{goal.frame}' is moved by group '{problem.request.group}'; "
                               "give the constraints in the world or in a link the group does not move")
-    if model.variables_to_root(goal.link) & planned != model.variables_to_root(tip) & planned:
+    T_tip_tcp = region_tool_frame(model, tip, goal, q_start, planned)
+    if T_tip_tcp is None:
         raise PrehensileError(f"{where}: link_name '{goal.link}' moves relative to the tip '{tip}' of group "
                               f"'{problem.request.group}'; constrain the tip or a link fixed to it")
     T_world_frame = link_pose(model, q_start, goal.frame, T_world_base=T_world_base) if goal.frame else np.eye(4)
-    T_tip_link = invert(link_pose(model, q_start, tip)) @ link_pose(model, q_start, goal.link)
-    return T_world_frame, T_tip_link @ goal.T_link_point
+    return T_world_frame, T_tip_tcp
 
 
 def _unplanned_outside(model: RobotModel, q_start: np.ndarray, joints: Sequence[str]) -> np.ndarray:

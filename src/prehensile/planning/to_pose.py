@@ -78,6 +78,15 @@ def plan_to_pose(ctx: PlanningContext, q_start: np.ndarray, target: np.ndarray |
                   IKRRTSettings(time_budget_s=time_budget_s), rng)
 
 
+def region_tool_frame(model, tip: str, goal, q: np.ndarray, planned: set[int]) -> np.ndarray | None:
+    """T_tip_tcp (4, 4): the constrained point frame of ``goal`` (a
+    :class:`~prehensile.scene.PoseGoal`) on the link ``tip``, as q (dof,) places them; None if
+    the goal's link moves relative to the tip when the variables ``planned`` (indices into q) move."""
+    if model.variables_to_root(goal.link) & planned != model.variables_to_root(tip) & planned:
+        return None
+    return invert(link_pose(model, q, tip)) @ link_pose(model, q, goal.link) @ goal.T_link_point
+
+
 def _checked_target(target, planner: str) -> np.ndarray:
     target = np.asarray(target, dtype=float)
     if target.shape not in ((4, 4), (3,)):
@@ -91,12 +100,10 @@ def _region_goal(ctx: PlanningContext, q_start: np.ndarray, chain: str, planner:
     J+-RRT a function from a tool pose to the region's pose nearest to it; the tool frame is the
     goal's point frame on the chain's tip link (placed as ``q_start`` (dof,) puts it)."""
     model, margin, tip = ctx.model, REGION_MARGINS[planner], ctx.model.chain(chain).tip_link
-    planned = set(ctx.space.indices.tolist())
-    if model.variables_to_root(goal.link) & planned != model.variables_to_root(tip) & planned:
+    T_tip_tcp = region_tool_frame(model, tip, goal, q_start, set(ctx.space.indices.tolist()))
+    if T_tip_tcp is None:
         raise PrehensileError(f"{planner}: the goal's link '{goal.link}' moves relative to the tip '{tip}' of "
                               f"chain '{chain}'; constrain the tip or a link fixed to it")
-    T_tip_link = invert(link_pose(model, q_start, tip)) @ link_pose(model, q_start, goal.link)
-    T_tip_tcp = T_tip_link @ goal.T_link_point
     if planner == "jplus_rrt":
         if goal.orientation is None:
             raise PrehensileError(f"jplus_rrt steps toward a full pose, and the goal of link '{goal.link}' has no "
