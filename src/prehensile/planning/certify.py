@@ -38,7 +38,7 @@ wholly inside a closed mesh collides, as in :class:`~prehensile.collision.exact.
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Callable, Sequence
 
 import coal
@@ -418,11 +418,12 @@ def certify_path(ctx: PlanningContext, path: np.ndarray, resolution: float | Non
     free bubbles and sampled at ``resolution`` (m, default ``ctx.certify_resolution``) where
     a pair is closer than that (see the module doc). Attached objects are included.
     """
+    start = clock()
     path = ctx.model.check_configuration(path, "path")
     if path.ndim != 2 or len(path) < 1:
         raise PrehensileError(f"certify_path: path must have shape (N >= 1, {ctx.model.dof}), got {path.shape}")
     res = ctx.certify_resolution if resolution is None else check_resolution(resolution, "certify_path: resolution")
-    return ctx.certifier.certify(path, res)
+    return replace(ctx.certifier.certify(path, res), time_s=clock() - start)  # the whole call
 
 
 def refine_after_failure(ctx: PlanningContext, context: PlanningContext, links: frozenset, resolution: float,
