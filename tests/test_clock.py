@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 from numba import njit
 
-from prehensile.clock import clock, compile_time
+from prehensile.clock import COMPILING, clock, compile_time
+from prehensile.planning.kernels import kernel_clock
 
 
 def test_compiling_a_kernel_does_not_advance_the_clock():
@@ -32,6 +33,15 @@ def test_compiling_a_kernel_does_not_advance_the_clock():
     compiled, ticks = compile_time(), clock()
     sum_of_squares(np.arange(4.0))  # compiled now: the clock runs as the wall clock
     assert compile_time() == compiled and clock() > ticks
+
+
+def test_kernels_read_the_same_clock():
+    """kernel_clock is clock(), also on its first call in a process, which loads or compiles it
+    (the clock stands still meanwhile, so a deadline set before the call still holds)."""
+    for _ in range(2):
+        before = clock()
+        inside = kernel_clock(COMPILING)
+        assert before <= inside <= clock()
 
 
 def test_first_plan_on_a_cold_kernel_cache_keeps_its_budget(tmp_path):

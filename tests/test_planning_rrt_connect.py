@@ -24,7 +24,7 @@ from prehensile.planning import (
     RRTConnectSettings,
     certify_path, elastic_band, rrt_connect, shortcut,
 )
-from prehensile.clock import clock
+from prehensile.clock import COMPILING, clock
 from prehensile.collision import sphere_kernels as SK
 from prehensile.planning.certify import CertifyReport, certified_escape, refine_after_failure
 from prehensile.planning.context import ball_joint_weights
@@ -313,8 +313,8 @@ def test_direct_edges_to_a_goal_set_take_steps_like_iterations(arm):
 
     def steps(count: int) -> int:
         return search_kernel(trees.nodes, trees.parents, trees.flags, trees.points, trees.work, trees.counters,
-                             trees.path, trees.marks, trees.owner, True, query.state, count, 1.0, query.res, 3,
-                             space.indices, space.weights, *bounds, query.start.copy(),
+                             trees.path, trees.marks, trees.owner, True, query.state, count, np.inf, COMPILING, 1.0,
+                             query.res, 3, space.indices, space.weights, *bounds, query.start.copy(),
                              ctx.spheres.data, ctx.scratch, ctx.motion_arrays(query.res))
 
     assert steps(4) == RUNNING and trees.counters[DIRECT] == 4 and trees.counters[ITERATIONS] == 0

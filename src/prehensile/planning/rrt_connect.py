@@ -21,10 +21,9 @@ Endpoints in contact range of obstacles (grasps) may be rejected by the conserva
 although the exact geometry is free; they get a short escape motion certified exactly
 (:func:`~prehensile.planning.certify.certified_escape`) as their first tree edge.
 
-numba cannot read the clock, so Python runs the kernel in chunks of iterations and checks the
-time budget between them (chunks sized from the budget and the measured time per iteration);
-all state (trees, counters, the splitmix64 generator seeded from ``rng``) lives in arrays, so
-the result does not depend on where the chunks end. Trees start small and double when full, up to
+The kernel reads the clock itself (:func:`~prehensile.planning.kernels.kernel_clock`) and stops
+at the deadline; all state (trees, counters, the splitmix64 generator seeded from ``rng``) lives in
+arrays, so a search resumes where it stopped. Trees start small and double when full, up to
 ``max_nodes``.
 
 Afterwards the path is shortcut (:func:`~prehensile.planning.shortcut.shortcut`, random
@@ -42,7 +41,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from prehensile.clock import clock
+from prehensile.clock import COMPILING, clock
 from prehensile.errors import PrehensileError
 from prehensile.planning.certify import (
     ESCAPE_ATTEMPTS, CertifyReport, certified_escape, certify_path, refine_after_failure,
@@ -50,7 +49,8 @@ from prehensile.planning.certify import (
 from prehensile.planning.context import PlanningContext
 from prehensile.planning.cspace import ConfigurationSpace
 from prehensile.planning.kernels import (
-    BLOCKED, FREE, NO_LIMIT, assign, distance, motion_free, nearest, path_length, rng_state, uniform,
+    BLOCKED, FREE, NO_LIMIT, assign, distance, kernel_clock, motion_free, nearest, path_length, rng_state,
+    uniform,
 )
 from prehensile.planning.result import PlanResult, PlanStats, PlanStatus
 from prehensile.planning.seeding import planner_rng
@@ -253,10 +253,12 @@ def _finish(nodes, parents, flags, points, counters, start_node, goal_node, join
 
 
 @njit(cache=True, _nrt=False)
-def search(nodes, parents, flags, points, work, counters, path, marks, owner, prune_path, rng, iterations, step, res,
-           budget, idx, w, lower, upper, sample, checker, scratch, motion):
-    """Run up to ``iterations`` steps, each a direct edge's goal or an RRT-Connect iteration;
-    returns RUNNING, FOUND or FULL.
+def search(nodes, parents, flags, points, work, counters, path, marks, owner, prune_path, rng, iterations, deadline,
+           compiling, step, res, budget, idx, w, lower, upper, sample, checker, scratch, motion):
+    """Run up to ``iterations`` steps, each a direct edge's goal or an RRT-Connect iteration,
+    until ``deadline`` (s, :func:`~prehensile.clock.clock`, read before each step with
+    ``compiling``: :func:`~prehensile.planning.kernels.kernel_clock`); returns RUNNING, FOUND
+    or FULL.
 
     Tree 0 (start) and tree 1 (goals) hold nodes (2, capacity, dof) with parents (2,
     capacity) (-1 for roots), flags (2, capacity), the nodes' coordinates for :func:`nearest`
@@ -275,7 +277,7 @@ def search(nodes, parents, flags, points, work, counters, path, marks, owner, pr
     """
     tried = 0
     while counters[DIRECT] < counters[DIRECT_END]:
-        if tried == iterations:
+        if tried == iterations or kernel_clock(compiling) >= deadline:
             return RUNNING
         g = counters[DIRECT]
         counters[DIRECT] += 1
@@ -287,6 +289,8 @@ def search(nodes, parents, flags, points, work, counters, path, marks, owner, pr
                            w, res, checker, scratch, motion):
                     return FOUND
     for _ in range(iterations - tried):
+        if kernel_clock(compiling) >= deadline:
+            return RUNNING
         t = counters[ITERATIONS] % 2
         counters[ITERATIONS] += 1
         for k in range(idx.shape[0]):
@@ -521,24 +525,17 @@ class RRTConnectSearch:
         space, trees, settings = self.context.space, self.trees, self.settings
         work = (*space.sampling_bounds(self.start[space.indices]), self.start.copy(), self.context.spheres.data,
                 self.context.scratch, self.context.motion_arrays(self.res))
-        # a quarter of the time left at a guessed 20 us per iteration (most take 5 to 50), at most 128
-        chunk = int(min(max(0.25 * (deadline - clock()) / 20e-6, 1), 128))
         last = trees.counters[ITERATIONS] + iterations
-        while True:
-            begun, before = clock(), trees.counters[ITERATIONS]
-            chunk = min(chunk, last - before)
+        while True:  # again when the trees grew, or when direct edges took some of the iterations
             code = search(trees.nodes, trees.parents, trees.flags, trees.points, trees.work, trees.counters, trees.path,
-                          trees.marks, trees.owner, settings.shortcut, self.state, chunk, settings.step, self.res,
-                          settings.eager_checks, space.indices, space.weights, *work)
-            now = clock()
+                          trees.marks, trees.owner, settings.shortcut, self.state, last - trees.counters[ITERATIONS],
+                          deadline, COMPILING, settings.step, self.res, settings.eager_checks, space.indices,
+                          space.weights, *work)
             if code == FOUND:
                 return int(trees.counters[PATH_LENGTH]), int(trees.counters[GOAL_ROOT])
-            if (code == FULL and not trees.grow(settings.max_nodes) or now >= deadline
+            if (code == FULL and not trees.grow(settings.max_nodes) or clock() >= deadline
                     or trees.counters[ITERATIONS] >= last):
                 return 0, -1
-            per_iteration = (now - begun) / max(trees.counters[ITERATIONS] - before, 1)
-            # a quarter of the time left, growing at most twofold (iterations slow down as trees grow)
-            chunk = int(min(max(0.25 * (deadline - now) / max(per_iteration, 1e-7), 1), 2 * chunk))
 
     def solve(self, time_budget_s: float, max_iterations: int | None = None) -> PlanResult:
         """Search for up to ``time_budget_s`` (s, > 0) more, from where the last call stopped,

@@ -23,10 +23,12 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from prehensile.clock import clock
+from prehensile.clock import COMPILING, clock
 from prehensile.planning.certify import check_valid_path, rework_certified
 from prehensile.planning.context import PlanningContext, check_resolution
-from prehensile.planning.kernels import FREE, NO_LIMIT, assign, distance, motion_free, rng_state, uniform
+from prehensile.planning.kernels import (
+    FREE, NO_LIMIT, assign, distance, kernel_clock, motion_free, rng_state, uniform,
+)
 from prehensile.planning.seeding import planner_rng
 from prehensile.settings import FRACTION, NON_NEGATIVE, at_least, check_value
 
@@ -125,18 +127,20 @@ def prune(path, n, marks, idx, w, res, checker, scratch, motion, counters):
 
 
 @njit(cache=True, _nrt=False)
-def simplify(path, n, marks, iterations, min_gain, first, last, rng, idx, w, res, checker, scratch, motion, counters,
-             cum, qa, qb):
-    """Prune path[:n] in place if ``first``, make ``iterations`` random shortcut attempts (each
-    checked only if it saves more than ``min_gain`` of the length), prune again if ``last``;
-    returns the new count. Each shortcut adds at most one waypoint; the attempts stop early when
-    ``path`` has no row left for one more (:data:`MAX_INSERTED`); ``marks`` as for :func:`prune`;
-    ``cum`` (rows,), qa and qb (dof,) are work arrays, ``rng`` the (1,) uint64 state."""
+def simplify(path, n, marks, iterations, deadline, compiling, min_gain, first, rng, idx, w, res, checker, scratch,
+             motion, counters, cum, qa, qb):
+    """Prune path[:n] in place if ``first``, make up to ``iterations`` random shortcut attempts
+    (each checked only if it saves more than ``min_gain`` of the length) until ``deadline`` (s,
+    :func:`~prehensile.clock.clock`, read before each with ``compiling``:
+    :func:`~prehensile.planning.kernels.kernel_clock`), prune again; returns the new
+    count. Each shortcut adds at most one waypoint; the attempts stop early when ``path`` has no
+    row left for one more (:data:`MAX_INSERTED`); ``marks`` as for :func:`prune`; ``cum``
+    (rows,), qa and qb (dof,) are work arrays, ``rng`` the (1,) uint64 state."""
     ids, checked, _ = marks
     if first:
         n = prune(path, n, marks, idx, w, res, checker, scratch, motion, counters)
     for _ in range(iterations):
-        if n < 3 or n == path.shape[0]:
+        if n < 3 or n == path.shape[0] or kernel_clock(compiling) >= deadline:
             break
         cum[0] = 0.0
         for i in range(n - 1):
@@ -171,9 +175,7 @@ def simplify(path, n, marks, iterations, min_gain, first, last, rng, idx, w, res
         ids[i + 1], ids[i + 2] = -1, -1
         checked[i + 1], checked[i + 2] = True, rest_checked
         n += tail - old
-    if last:
-        n = prune(path, n, marks, idx, w, res, checker, scratch, motion, counters)
-    return n
+    return prune(path, n, marks, idx, w, res, checker, scratch, motion, counters)
 
 
 def shortcut(ctx: PlanningContext, path: np.ndarray, rng: np.random.Generator | int | None, iterations: int = 100,
@@ -188,9 +190,7 @@ def shortcut(ctx: PlanningContext, path: np.ndarray, rng: np.random.Generator | 
         rng: random source or seed (:func:`~prehensile.planning.seeding.planner_rng`; the same seed gives
             the same result, unless ``time_budget_s`` cuts the attempts short).
         iterations: random shortcut attempts.
-        time_budget_s: stop the random attempts after this time (s), per try (see ``retries``);
-            the clock is read between compiled chunks of attempts (64, 64, 128, ...), so the
-            first 64 always run.
+        time_budget_s: stop the random attempts after this time (s), per try (see ``retries``).
         resolution: edge-check resolution (m); default ``ctx.resolution``.
         stats: optional (1,) int64 counter of clearance evaluations (incremented).
         min_gain: a random shortcut is checked only if it shortens the path by more than this
@@ -245,17 +245,7 @@ def shortcut_rows(ctx: PlanningContext, buffer: np.ndarray, n: int, marks: tuple
     (:func:`waypoint_marks` of as many rows, ids set for the first n) are overwritten. Without
     ``prune_first`` the path is not pruned first: it has been (:func:`prune`, with these marks),
     and the pairs its memo holds blocked are not checked again."""
-    work = (ctx.space.indices, ctx.space.weights, res, ctx.spheres.data, ctx.scratch, ctx.motion_arrays(res),
-            np.zeros(1, dtype=np.int64) if stats is None else stats, np.empty(len(buffer)),
-            np.empty(ctx.model.dof), np.empty(ctx.model.dof))
-    state, done = rng_state(rng), 0
-    start = clock()
-    while True:  # chunks of random attempts (64, 64, 128, ...) until done or out of time
-        count = min(max(64, done), iterations - done)
-        last = done + count >= iterations
-        n = simplify(buffer, n, marks, count, min_gain, prune_first and done == 0, last, state, *work)
-        done += count
-        if last:
-            return n
-        if clock() - start >= time_budget_s:
-            return simplify(buffer, n, marks, 0, min_gain, False, True, state, *work)
+    return simplify(buffer, n, marks, iterations, clock() + time_budget_s, COMPILING, min_gain, prune_first,
+                    rng_state(rng), ctx.space.indices, ctx.space.weights, res, ctx.spheres.data, ctx.scratch,
+                    ctx.motion_arrays(res), np.zeros(1, dtype=np.int64) if stats is None else stats,
+                    np.empty(len(buffer)), np.empty(ctx.model.dof), np.empty(ctx.model.dof))
