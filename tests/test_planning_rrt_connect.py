@@ -663,6 +663,10 @@ def test_shortcut_never_lengthens_nor_invalidates(arm):
             shortcut(ctx, detour, 0, **bad)
     with pytest.raises(PrehensileError, match="shortcut: resolution: must be a finite length"):
         shortcut(ctx, detour, 0, resolution=float("inf"))  # would let every shortcut through the wall
+    # the time limit is read before every random attempt: none runs without time; pruning still does
+    pruned = shortcut(ctx, detour, 0, iterations=0)
+    assert len(pruned) < len(detour)
+    np.testing.assert_array_equal(shortcut(ctx, detour, 0, iterations=50, time_budget_s=0.0), pruned)
     # rows for the inserted waypoints are capped, not one per attempt; a full buffer ends the attempts
     assert len(shortcut(ctx, detour, 0, iterations=10**9, time_budget_s=0.01)) <= len(detour) + MAX_INSERTED
     buffer, marks = np.empty((len(detour) + 1, 3)), waypoint_marks(len(detour) + 1)
