@@ -12,8 +12,7 @@ import numpy as np
 import pytest
 from numba import njit
 
-from prehensile.clock import COMPILING, clock, compile_time
-from prehensile.planning.kernels import kernel_clock
+from prehensile.clock import COMPILING, clock, compile_time, kernel_clock
 
 
 def test_compiling_a_kernel_does_not_advance_the_clock():

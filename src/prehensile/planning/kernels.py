@@ -35,13 +35,8 @@ and tuples of arrays took about a quarter of the planning time.
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
-from llvmlite import ir
-from numba import njit, types
-from numba.core import cgutils
-from numba.extending import intrinsic
+from numba import njit
 
 from prehensile.collision import sphere_kernels as SK
 from prehensile.kinematics.kernels import FAST
@@ -66,30 +61,6 @@ def uniform(state):
     z = (z ^ (z >> _S27)) * _MIX2
     z = z ^ (z >> _S31)
     return (z >> _S11) * (1.0 / 9007199254740992.0)
-
-
-@intrinsic
-def _monotonic_ns(typingctx):
-    """POSIX ``clock_gettime(CLOCK_MONOTONIC)`` in ns, called by name (so kernels that read it stay cacheable)."""
-
-    def codegen(context, builder, signature, args):
-        i32, i64 = ir.IntType(32), ir.IntType(64)
-        spec = cgutils.alloca_once(builder, ir.ArrayType(i64, 2))  # struct timespec {tv_sec, tv_nsec}
-        gettime = cgutils.get_or_insert_function(builder.module, ir.FunctionType(i32, [i32, spec.type]),
-                                                 "clock_gettime")
-        builder.call(gettime, [ir.Constant(i32, time.CLOCK_MONOTONIC), spec])
-        seconds, nanoseconds = (builder.load(builder.gep(spec, [ir.Constant(i32, 0), ir.Constant(i32, k)]))
-                                for k in (0, 1))
-        return builder.add(builder.mul(seconds, ir.Constant(i64, 1_000_000_000)), nanoseconds)
-
-    return types.int64(), codegen
-
-
-@njit(cache=True, _nrt=False)
-def kernel_clock(compiling):
-    """:func:`~prehensile.clock.clock` read in a compiled kernel (about 25 ns); ``compiling`` is
-    :data:`prehensile.clock.COMPILING`."""
-    return _monotonic_ns() * 1e-9 - compiling[0]
 
 
 @njit(cache=True, inline="always")

@@ -21,7 +21,7 @@ Endpoints in contact range of obstacles (grasps) may be rejected by the conserva
 although the exact geometry is free; they get a short escape motion certified exactly
 (:func:`~prehensile.planning.certify.certified_escape`) as their first tree edge.
 
-The kernel reads the clock itself (:func:`~prehensile.planning.kernels.kernel_clock`) and stops
+The kernel reads the clock itself (:func:`~prehensile.clock.kernel_clock`) and stops
 at the deadline; all state (trees, counters, the splitmix64 generator seeded from ``rng``) lives in
 arrays, so a search resumes where it stopped. Trees start small and double when full, up to
 ``max_nodes``.
@@ -41,7 +41,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from prehensile.clock import COMPILING, clock
+from prehensile.clock import COMPILING, clock, kernel_clock
 from prehensile.errors import PrehensileError
 from prehensile.planning.certify import (
     ESCAPE_ATTEMPTS, CertifyReport, certified_escape, certify_path, refine_after_failure,
@@ -49,8 +49,7 @@ from prehensile.planning.certify import (
 from prehensile.planning.context import PlanningContext
 from prehensile.planning.cspace import ConfigurationSpace
 from prehensile.planning.kernels import (
-    BLOCKED, FREE, NO_LIMIT, assign, distance, kernel_clock, motion_free, nearest, path_length, rng_state,
-    uniform,
+    BLOCKED, FREE, NO_LIMIT, assign, distance, motion_free, nearest, path_length, rng_state, uniform,
 )
 from prehensile.planning.result import PlanResult, PlanStats, PlanStatus
 from prehensile.planning.seeding import planner_rng
@@ -257,7 +256,7 @@ def search(nodes, parents, flags, points, work, counters, path, marks, owner, pr
            compiling, step, res, budget, idx, w, lower, upper, sample, checker, scratch, motion):
     """Run up to ``iterations`` steps, each a direct edge's goal or an RRT-Connect iteration,
     until ``deadline`` (s, :func:`~prehensile.clock.clock`, read before each step with
-    ``compiling``: :func:`~prehensile.planning.kernels.kernel_clock`); returns RUNNING, FOUND
+    ``compiling``: :func:`~prehensile.clock.kernel_clock`); returns RUNNING, FOUND
     or FULL.
 
     Tree 0 (start) and tree 1 (goals) hold nodes (2, capacity, dof) with parents (2,

@@ -23,12 +23,10 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from prehensile.clock import COMPILING, clock
+from prehensile.clock import COMPILING, clock, kernel_clock
 from prehensile.planning.certify import check_valid_path, rework_certified
 from prehensile.planning.context import PlanningContext, check_resolution
-from prehensile.planning.kernels import (
-    FREE, NO_LIMIT, assign, distance, kernel_clock, motion_free, rng_state, uniform,
-)
+from prehensile.planning.kernels import FREE, NO_LIMIT, assign, distance, motion_free, rng_state, uniform
 from prehensile.planning.seeding import planner_rng
 from prehensile.settings import FRACTION, NON_NEGATIVE, at_least, check_value
 
@@ -132,7 +130,7 @@ def simplify(path, n, marks, iterations, deadline, compiling, min_gain, first, r
     """Prune path[:n] in place if ``first``, make up to ``iterations`` random shortcut attempts
     (each checked only if it saves more than ``min_gain`` of the length) until ``deadline`` (s,
     :func:`~prehensile.clock.clock`, read before each with ``compiling``:
-    :func:`~prehensile.planning.kernels.kernel_clock`), prune again; returns the new
+    :func:`~prehensile.clock.kernel_clock`), prune again; returns the new
     count. Each shortcut adds at most one waypoint; the attempts stop early when ``path`` has no
     row left for one more (:data:`MAX_INSERTED`); ``marks`` as for :func:`prune`; ``cum``
     (rows,), qa and qb (dof,) are work arrays, ``rng`` the (1,) uint64 state."""
