@@ -191,7 +191,6 @@ class SphereChecker:
                  spheres: SphereModel | None = None, acm: np.ndarray | None = None, mesh_boxes: int = 32,
                  static_hit: bool | None = None, still: np.ndarray | None = None) -> None:
         self.model = model
-        self._limits = (model.lower - LIMIT_TOLERANCE, model.upper + LIMIT_TOLERANCE)  # for screen
         self.spheres = generate_sphere_model(model) if spheres is None else spheres
         if tuple(self.spheres.link_names) != tuple(model.link_names):
             raise PrehensileError("SphereChecker: the sphere model belongs to a different robot (link lists differ)")
@@ -230,6 +229,10 @@ class SphereChecker:
         self._scales = K.unit_scales(self.data)
         world = self.data[:-1] + (np.zeros((0, 2), dtype=np.int64),)
         self._world_only = (world, K.unit_scales(world))
+        self.screening = (model.lower - LIMIT_TOLERANCE, model.upper + LIMIT_TOLERANCE, self._scales,
+                          self._world_only[1])
+        """The arrays of :func:`~prehensile.collision.sphere_kernels.screen_one` after ``q``:
+        (lower (dof,), upper (dof,), scales, world scales) (see :meth:`screen`)."""
         self._still = static
         # balls on the root body do not move: test them against the world once, here
         self.static_hit = self.still_hit(np.zeros(model.dof)) if static_hit is None else bool(static_hit)
@@ -332,8 +335,9 @@ class SphereChecker:
         < margin``); one compiled call for the three, the tests a planner runs on a path's ends."""
         q, flat = self._batch(q)
         inside, free, near = (np.empty(len(flat), dtype=np.bool_) for _ in range(3))
-        K.screen_batch(flat, *self._limits, self.data, self._scratch, self._scales, self._world_only[1], float(margin),
-                       inside, free, near)
+        lower, upper, scales, world_scales = self.screening
+        K.screen_batch(flat, lower, upper, self.data, self._scratch, scales, world_scales, float(margin), inside, free,
+                       near)
         if self.static_hit:
             free[:], near[:] = False, True
         return inside.reshape(q.shape[:-1]), free.reshape(q.shape[:-1]), near.reshape(q.shape[:-1])

@@ -255,19 +255,26 @@ def clearance_batch(qs, data, scratch, cap, scales, out):
         out[b] = clearance(qs[b], data, scratch, cap, scales, 0.0)
 
 
+@njit(cache=True, inline="always")
+def screen_one(q, lower, upper, data, scratch, scales, world_scales, margin):
+    """(inside, free, near) for configuration q (dof,): it lies within [lower, upper] (dof,), it
+    is free (as :func:`check_batch`), some ball is closer than ``margin`` (m) to an obstacle
+    (``world_scales``: :func:`unit_scales` of ``data`` without its self pairs)."""
+    inside = True
+    for k in range(q.shape[0]):
+        inside &= lower[k] <= q[k] <= upper[k]
+    world = data[:-1] + (data[-1][:0],)  # without self pairs
+    free = clearance(q, data, scratch, 0.0, scales, 0.0) >= 0.0
+    return inside, free, clearance(q, world, scratch, margin, world_scales, 0.0) < margin
+
+
 @njit(cache=True, fastmath=FAST)
 def screen_batch(qs, lower, upper, data, scratch, scales, world_scales, margin, inside, free, near):
-    """For configurations qs (B, dof): inside[b] = qs[b] lies within [lower, upper] (dof,),
-    free[b] = it is free (as :func:`check_batch`), near[b] = some ball is closer than ``margin``
-    (m) to an obstacle (``world_scales``: :func:`unit_scales` of ``data``). One compiled call for
-    the three tests, given ``data`` once (each array passed costs the call time)."""
-    world = data[:-1] + (data[-1][:0],)  # without self pairs
+    """:func:`screen_one` of each configuration of qs (B, dof) into inside, free and near (B,)
+    bool: one compiled call for the three tests, given ``data`` once (each array passed costs
+    the call time)."""
     for b in range(qs.shape[0]):
-        inside[b] = True
-        for k in range(qs.shape[1]):
-            inside[b] &= lower[k] <= qs[b, k] <= upper[k]
-        free[b] = clearance(qs[b], data, scratch, 0.0, scales, 0.0) >= 0.0
-        near[b] = clearance(qs[b], world, scratch, margin, world_scales, 0.0) < margin
+        inside[b], free[b], near[b] = screen_one(qs[b], lower, upper, data, scratch, scales, world_scales, margin)
 
 
 @njit(cache=True, fastmath=FAST)

@@ -282,6 +282,13 @@ class PlanningContext:
         nested = np.array([self.certifier.nested(row) for row in rows], dtype=bool).reshape(free.shape)
         return free & ~nested
 
+    def balls_decide_ends(self, q: np.ndarray) -> bool:
+        """Whether the sphere model alone tells which configurations with q's (dof,) values of
+        the joints not planned can end a path (within the limits, free, clear of the world): no
+        contact that only the exact geometry sees (:meth:`exact_screen`) is possible there, and
+        the root body's balls are clear of the world."""
+        return not (self._mesh_world or self.spheres.static_hit) and self._static_free_at(q)
+
     def _static_free_at(self, q: np.ndarray) -> bool:
         """:meth:`static_free` of one checked configuration q (dof,)."""
         key = q[self.space.fixed].tobytes()

@@ -42,6 +42,7 @@ import numpy as np
 from numba import njit
 
 from prehensile.clock import COMPILING, clock, kernel_clock
+from prehensile.collision import sphere_kernels as SK
 from prehensile.errors import PrehensileError
 from prehensile.planning.certify import (
     ESCAPE_ATTEMPTS, CertifyReport, certified_escape, certify_path, refine_after_failure,
@@ -53,12 +54,12 @@ from prehensile.planning.kernels import (
 )
 from prehensile.planning.result import PlanResult, PlanStats, PlanStatus
 from prehensile.planning.seeding import planner_rng
-from prehensile.planning.shortcut import MAX_INSERTED, MIN_GAIN, prune, shortcut_rows, waypoint_marks
+from prehensile.planning.shortcut import MAX_INSERTED, MIN_GAIN, prune, simplify, waypoint_marks
 from prehensile.settings import (
     FINITE_POSITIVE, FRACTION, NON_NEGATIVE, POSITIVE, at_least, check_fields, check_value, or_none,
 )
 
-RUNNING, FOUND, FULL = 0, 1, 2  # kernel results
+RUNNING, FOUND, FULL, ENDS = 0, 1, 2, 3  # kernel results (ENDS: an end needs the exact geometry, _plant_ends)
 _TRAPPED, _ADVANCED, _REACHED, _NO_ROOM = 0, 1, 2, 3  # extension results
 _CHECKED, _DEAD = 1, 2  # node flags: edge from the parent fully checked; cut off the tree
 # counters: clearance evaluations, iterations, tree sizes, start nodes, path length, goal root,
@@ -314,27 +315,79 @@ def search(nodes, parents, flags, points, work, counters, path, marks, owner, pr
     return RUNNING
 
 
+@njit(cache=True, inline="always")
+def _add_node(nodes, parents, flags, points, counters, t, q, parent, flag, idx, w):
+    """Append q (dof,) to tree t with its parent node (-1 for a root) and flags (room for it is the caller's)."""
+    i = counters[SIZE + t]
+    assign(nodes[t, i], q)
+    parents[t, i], flags[t, i] = parent, flag
+    _set_point(points, t, i, q, idx, w)
+    if flag & _DEAD:
+        _cut(flags, points, t, i)
+    counters[SIZE + t] = i + 1
+
+
 @njit(cache=True, _nrt=False)
 def _plant(nodes, parents, flags, points, counters, t, qs, parent, flag, idx, w):
     """Append the nodes qs (m, dof) with parents ``parent`` (m,) (counted from the first of
     them, -1 for a root) and flags ``flag`` (m,) to tree t (room for them is the caller's)."""
     first = counters[SIZE + t]
     for r in range(qs.shape[0]):
-        i = first + r
-        assign(nodes[t, i], qs[r])
-        parents[t, i], flags[t, i] = first + parent[r] if parent[r] >= 0 else -1, flag[r]
-        _set_point(points, t, i, qs[r], idx, w)
-        if flag[r] & _DEAD:
-            _cut(flags, points, t, i)
-    counters[SIZE + t] = first + qs.shape[0]
+        _add_node(nodes, parents, flags, points, counters, t, qs[r], first + parent[r] if parent[r] >= 0 else -1,
+                  flag[r], idx, w)
+
+
+@njit(cache=True, _nrt=False)
+def _plant_ends(ends, screen, nodes, parents, flags, points, counters, idx, w, checker, scratch):
+    """Plant ends[0] as the root of the start tree and ends[1:] as roots of the goal tree if each
+    lies within the limits, is free for the balls and holds ``margin`` (m) from the world
+    (``screen`` = (lower, upper, scales, world scales, margin),
+    :func:`~prehensile.collision.sphere_kernels.screen_one`); False, and nothing planted, if one
+    does not (it needs the exact geometry: an escape, or the reason it is unusable)."""
+    lower, upper, scales, world_scales, margin = screen
+    for b in range(ends.shape[0]):
+        inside, free, near = SK.screen_one(ends[b], lower, upper, checker, scratch, scales, world_scales, margin)
+        if not inside or not free or near:
+            return False
+    for b in range(ends.shape[0]):
+        _add_node(nodes, parents, flags, points, counters, min(b, 1), ends[b], -1, 0, idx, w)
+    counters[START_NODES], counters[DIRECT], counters[DIRECT_END] = 1, 0, ends.shape[0] - 1
+    return True
+
+
+@njit(cache=True, _nrt=False)
+def _query(ends, screen, trees, prune_path, rng, iterations, deadline, compiling, step, res, budget, idx, w, lower,
+           upper, sample, checker, scratch, motion, shortcut, times):
+    """A query's usual course in one compiled call: on empty trees plant the ends
+    (:func:`_plant_ends`; ENDS if it cannot), :func:`search` (its arguments; ``trees`` = (nodes,
+    parents, flags, points, work, counters, path, marks, owner)), then on FOUND with
+    ``prune_path`` shorten a path of 3 or more waypoints
+    (:func:`~prehensile.planning.shortcut.simplify`, the same generator; ``shortcut`` =
+    (attempts, time limit s, min_gain, evaluation counter (1,) int64, work arrays cum (rows,), qa,
+    qb (dof,))) and set ``counters[PATH_LENGTH]`` to its waypoints. Returns search's result or
+    ENDS; ``times[0]`` is the clock (:func:`~prehensile.clock.clock`) when the search stopped."""
+    nodes, parents, flags, points, work, counters, path, marks, owner = trees
+    if counters[SIZE] == 0 and not _plant_ends(ends, screen, nodes, parents, flags, points, counters, idx, w,
+                                               checker, scratch):
+        times[0] = kernel_clock(compiling)
+        return ENDS
+    code = search(nodes, parents, flags, points, work, counters, path, marks, owner, prune_path, rng, iterations,
+                  deadline, compiling, step, res, budget, idx, w, lower, upper, sample, checker, scratch, motion)
+    times[0] = kernel_clock(compiling)
+    if code == FOUND and prune_path and counters[PATH_LENGTH] >= 3:
+        attempts, limit, min_gain, checks, cum, qa, qb = shortcut
+        counters[PATH_LENGTH] = simplify(path, counters[PATH_LENGTH], marks, attempts, times[0] + limit, compiling,
+                                         min_gain, False, rng, idx, w, res, checker, scratch, motion, checks, cum, qa,
+                                         qb)
+    return code
 
 
 class _Trees:
-    """Tree arrays for :func:`search` in the space ``space``, doubled when full. The path rows
-    (``path``, ``marks``) have ``spare`` rows more than the trees' nodes, for the points that
-    shortcutting inserts in place."""
+    """Tree arrays for :func:`search` in the space ``space``, empty at first, doubled when full.
+    The path rows (``path``, ``marks``, ``cum``) have ``spare`` rows more than the trees' nodes,
+    for the points that shortcutting inserts in place."""
 
-    def __init__(self, start_nodes: list, capacity: int, space: ConfigurationSpace, spare: int) -> None:
+    def __init__(self, capacity: int, space: ConfigurationSpace, spare: int) -> None:
         self.space, self.spare, dof = space, spare, space.model.dof
         self.nodes = np.empty((2, capacity, dof))
         self.parents = np.full((2, capacity), -1, dtype=np.int64)
@@ -342,15 +395,23 @@ class _Trees:
         self.points, self.work = np.empty((2, space.n, capacity)), np.empty(capacity)
         self._path_rows(2 * capacity)
         self.counters = np.zeros(9, dtype=np.int64)
-        self.append(0, start_nodes)
-        self.counters[START_NODES] = len(start_nodes)
+
+    @property
+    def arrays(self) -> tuple:
+        """(nodes, parents, flags, points, work, counters, path, marks, owner) of :func:`search`."""
+        return (self.nodes, self.parents, self.flags, self.points, self.work, self.counters, self.path, self.marks,
+                self.owner)
+
+    def reserve(self, t: int, count: int) -> None:
+        """Make room for ``count`` more nodes in tree t."""
+        while self.counters[SIZE + t] + count > self.nodes.shape[1]:
+            self.grow(2 * self.nodes.shape[1])
 
     def append(self, t: int, tree_nodes: list) -> int:
         """Append (q, parent, flags) nodes to tree t, parents counted from the first of them;
         returns the index of the first."""
         first = int(self.counters[SIZE + t])
-        while first + len(tree_nodes) > self.nodes.shape[1]:
-            self.grow(2 * self.nodes.shape[1])
+        self.reserve(t, len(tree_nodes))
         qs, parents, flags = zip(*tree_nodes)
         _plant(self.nodes, self.parents, self.flags, self.points, self.counters, t, np.array(qs),
                np.array(parents, dtype=np.int64), np.array(flags, dtype=np.int64), self.space.indices,
@@ -377,6 +438,7 @@ class _Trees:
         rows = nodes + self.spare
         self.path, self.marks = np.empty((rows, self.nodes.shape[2])), waypoint_marks(rows)
         self.owner = np.empty(rows, dtype=np.int64)
+        self.cum = np.empty(rows)
 
 
 def _endpoints(ctx: PlanningContext, qs: np.ndarray, toward: np.ndarray, settings: RRTConnectSettings,
@@ -426,10 +488,10 @@ class RRTConnectSearch:
         started = clock()
         self.ctx, self.settings = ctx, settings
         self.rng = planner_rng(rng)
-        model = ctx.model
-        self.start = model.check_one(q_start, "rrt_connect: q_start").copy()  # the caller may change theirs
-        self.goals = np.zeros((0, model.dof))  # the goals as planned (ConfigurationSpace.goal_turns)
-        self.goal_of = np.zeros(0, dtype=np.int64)  # row of the goals as given, per row of self.goals
+        # row 0 the start (a copy: the caller may change theirs), then the goals as planned
+        # (ConfigurationSpace.goal_turns)
+        self.ends = ctx.model.check_one(q_start, "rrt_connect: q_start")[None].copy()
+        self.goal_of = np.zeros(0, dtype=np.int64)  # row of the goals as given, per goal row of self.ends
         self.given = 0  # goals given
         self.context, self.res, self.refined = ctx, ctx.resolution, frozenset()
         self.state = rng_state(self.rng)
@@ -437,7 +499,19 @@ class RRTConnectSearch:
         self.start_status: PlanStatus | None = None
         self.goal_row: dict[int, int] = {}  # goal tree root node -> row of the goals as given
         self.escapes = 0  # certified escape nodes in the trees
+        # work arrays of _query: the sample (the joints not planned at the start's values), qa, qb, the clock
+        self._sample, self._ab, self._times = self.start.copy(), np.empty((2, ctx.model.dof)), np.zeros(1)
         self._setup_s = clock() - started  # counted into the next solve's search time
+
+    @property
+    def start(self) -> np.ndarray:
+        """(dof,) the start configuration."""
+        return self.ends[0]
+
+    @property
+    def goals(self) -> np.ndarray:
+        """(k, dof) the goals as planned (a continuous joint's goal once each way round)."""
+        return self.ends[1:]
 
     def add_goals(self, q_goals: np.ndarray, deadline: float = np.inf) -> None:
         """Add a goal (dof,) or goals (k, dof); the joints not planned must equal the start's. A
@@ -461,10 +535,10 @@ class RRTConnectSearch:
         goals[:, fixed] = self.start[fixed]  # equal within 1e-9: the path keeps them constant
         planned, rows = space.goal_turns(goals, self.start)
         first = len(self.goals)
-        self.goals = np.concatenate((self.goals, planned))
+        self.ends = np.concatenate((self.ends, planned))
         self.goal_of = np.concatenate((self.goal_of, self.given + rows))
         self.given += len(goals)
-        if self.trees is not None:
+        if self.trees is not None and self.trees.counters[SIZE]:  # planted: the new goals join the goal tree
             self._append_goals(first, deadline)
         self._setup_s += clock() - started
 
@@ -494,21 +568,24 @@ class RRTConnectSearch:
             counters[DIRECT] = begin
         counters[DIRECT_END] = counters[SIZE + 1]
 
-    def _build_trees(self, deadline: float) -> None:
-        """New trees in the current context: the start (and its escape, searched until
-        ``deadline``) and every goal."""
-        self.goal_row, self.trees = {}, None
-        qs = np.concatenate((self.start[None], self.goals))
-        toward = np.empty_like(qs)  # the start escapes toward the first goal, goals toward the start
-        toward[0], toward[1:] = self.goals[0] if len(self.goals) else self.start, self.start
-        start, *goal_nodes = _endpoints(self.context, qs, toward, self.settings, self.rng, deadline, persistent=1)
-        # a start cut off by the deadline (no escape found yet) may find one in a later solve
-        self.start_status = PlanStatus.INVALID_START if start is None and clock() < deadline else None
-        if start is not None:
-            self.trees = _Trees(start, min(1024, self.settings.max_nodes), self.context.space,
-                                min(self.settings.shortcut_iterations, MAX_INSERTED))
-            self.escapes = len(start) - 1
-            self._add_goal_nodes(0, goal_nodes)
+    def _plant_exactly(self, deadline: float) -> bool:
+        """Plant the start and every goal on the empty trees, each end the balls reject or hold
+        near the world with its certified escape (searched until ``deadline``); False, and the
+        trees dropped, if the start is unusable (``start_status`` INVALID_START, unless the
+        deadline cut its escape search short: a later solve may find one)."""
+        toward = np.empty_like(self.ends)  # the start escapes toward the first goal, goals toward the start
+        toward[0], toward[1:] = self.ends[min(1, len(self.goals))], self.start
+        start, *goal_nodes = _endpoints(self.context, self.ends, toward, self.settings, self.rng, deadline,
+                                        persistent=1)
+        if start is None:
+            self.start_status = PlanStatus.INVALID_START if clock() < deadline else None
+            self.trees = None
+            return False
+        self.trees.append(0, start)
+        self.trees.counters[START_NODES] = len(start)
+        self.escapes = len(start) - 1
+        self._add_goal_nodes(0, goal_nodes)
+        return True
 
     def _start_over(self, report: CertifyReport, last: bool) -> None:
         """After a path failed certification: new trees, with covering balls on the links that
@@ -518,18 +595,41 @@ class RRTConnectSearch:
                                                                     report, last)
         self.trees = None
 
-    def _run(self, deadline: float, iterations: int) -> tuple[int, int]:
-        """Resume the search until ``deadline`` (s, :func:`~prehensile.clock.clock`) or for at most
-        ``iterations``; (waypoints of the path found in ``trees.path``, goal root), or (0, -1)."""
-        space, trees, settings = self.context.space, self.trees, self.settings
-        work = (*space.sampling_bounds(self.start[space.indices]), self.start.copy(), self.context.spheres.data,
-                self.context.scratch, self.context.motion_arrays(self.res))
+    def _run(self, deadline: float, iterations: int, checks: np.ndarray) -> tuple[int, int]:
+        """Resume the search (on new trees plant the ends first) until ``deadline`` (s,
+        :func:`~prehensile.clock.clock`) or for at most ``iterations``, and shorten the path it
+        finds (its clearance evaluations counted in ``checks``); (waypoints of the path in
+        ``trees.path``, goal root), (0, -1) without a path, (-1, -1) if the ends leave nothing
+        to search (``start_status`` says why, else no goal is usable)."""
+        ctx, settings = self.context, self.settings
+        if self.trees is None:
+            self.trees = _Trees(min(1024, settings.max_nodes), ctx.space,
+                                min(settings.shortcut_iterations, MAX_INSERTED))
+        if not self.trees.counters[SIZE]:  # the kernel plants ends the balls decide; the others need escapes here
+            if len(self.goals) == 0:
+                return -1, -1
+            self.trees.reserve(1, len(self.goals))
+            if not ctx.balls_decide_ends(self.start) and not (self._plant_exactly(deadline) and self.goal_row):
+                return -1, -1
+        space, chk, trees = ctx.space, ctx.spheres, self.trees
+        lower, upper = space.sampling_bounds(self.start[space.indices])
+        screen = (*chk.screening, 0.5 * ctx.resolution)
+        shortcut = (settings.shortcut_iterations, settings.shortcut_time_s, settings.shortcut_min_gain, checks)
         last = trees.counters[ITERATIONS] + iterations
         while True:  # again when the trees grew, or when direct edges took some of the iterations
-            code = search(trees.nodes, trees.parents, trees.flags, trees.points, trees.work, trees.counters, trees.path,
-                          trees.marks, trees.owner, settings.shortcut, self.state, last - trees.counters[ITERATIONS],
-                          deadline, COMPILING, settings.step, self.res, settings.eager_checks, space.indices,
-                          space.weights, *work)
+            planting = not trees.counters[SIZE]
+            if not (planting or self.goal_row):  # no usable goal (yet)
+                return -1, -1
+            code = _query(self.ends, screen, trees.arrays, settings.shortcut, self.state,
+                          last - trees.counters[ITERATIONS], deadline, COMPILING, settings.step, self.res,
+                          settings.eager_checks, space.indices, space.weights, lower, upper, self._sample, chk.data,
+                          ctx.scratch, ctx.motion_arrays(self.res), (*shortcut, trees.cum, *self._ab), self._times)
+            if code == ENDS:
+                if not self._plant_exactly(deadline):
+                    return -1, -1
+                continue
+            if planting:  # the kernel planted the start as node 0 of tree 0, the goals as the goal tree's roots
+                self.goal_row, self.escapes = dict(enumerate(self.goal_of.tolist())), 0
             if code == FOUND:
                 return int(trees.counters[PATH_LENGTH]), int(trees.counters[GOAL_ROOT])
             if (code == FULL and not trees.grow(settings.max_nodes) or clock() >= deadline
@@ -549,41 +649,36 @@ class RRTConnectSearch:
         t0 = clock() - self._setup_s
         self._setup_s = 0.0
         deadline = t0 + time_budget_s
-        dof, settings = self.ctx.model.dof, self.settings
-        empty = np.zeros((0, dof))
+        settings, empty = self.settings, np.zeros((0, self.ctx.model.dof))
+        limit = NO_LIMIT if max_iterations is None else int(max_iterations)
         totals = dict(iterations=0, nodes=0, collision_checks=0, plan_time_s=0.0, simplify_time_s=0.0,
                       certify_time_s=0.0)
-        checks = np.zeros(1, dtype=np.int64)
+        checks = np.zeros(1, dtype=np.int64)  # the shortening's clearance evaluations
         report: CertifyReport | None = None
         for attempt in range(settings.certify_retries + 1):
-            begun = clock()
-            if self.trees is None and self.start_status is None:
-                self._build_trees(deadline)
-            if self.trees is None or not self.goal_row:  # an escape search may have run out of time
+            begun = t0 if attempt == 0 else clock()
+            before = None if self.trees is None else self.trees.counters.copy()
+            n, root = self._run(deadline, limit, checks)
+            if n < 0:
                 status = self.start_status or (PlanStatus.TIMEOUT if clock() >= deadline else PlanStatus.INVALID_GOAL)
-                totals["plan_time_s"] += clock() - (t0 if attempt == 0 else begun)
+                totals["plan_time_s"] += clock() - begun
                 # after a failed certification: the covering balls of the refined context reject an end
                 # that the planning balls let through
                 info = {} if report is None else self._failure_info(attempt, report)
                 return PlanResult(status, empty, PlanStats(**totals), info=info)
-            before = self.trees.counters.copy()
-            n, root = self._run(deadline, NO_LIMIT if max_iterations is None else int(max_iterations))
-            counters = self.trees.counters - before
-            totals["plan_time_s"] += clock() - (t0 if attempt == 0 else begun)
-            totals["iterations"] += int(counters[ITERATIONS])
-            totals["nodes"] = int(self.trees.counters[SIZE] + self.trees.counters[SIZE + 1])
-            totals["collision_checks"] += int(counters[CHECKS])
+            counters = self.trees.counters
+            searched = counters if before is None else counters - before
+            totals["iterations"] += int(searched[ITERATIONS])
+            totals["nodes"] = int(counters[SIZE] + counters[SIZE + 1])
+            totals["collision_checks"] += int(searched[CHECKS])
             if n == 0:
+                totals["plan_time_s"] += clock() - begun
                 status = PlanStatus.TIMEOUT if report is None else PlanStatus.CERTIFICATION_FAILED
                 return PlanResult(status, empty, PlanStats(**totals), info=self._failure_info(attempt, report))
-            trees = self.trees
-            if settings.shortcut and n >= 3:  # in place: the search pruned the path already
-                begun = clock()
-                n = shortcut_rows(self.context, trees.path, n, trees.marks, self.rng, settings.shortcut_iterations,
-                                  settings.shortcut_min_gain, settings.shortcut_time_s, self.res, checks,
-                                  prune_first=False)
-                totals["simplify_time_s"] += clock() - begun
-            path, space = trees.path[:n].copy(), self.context.space
+            stopped = float(self._times[0])  # the search's end; the shortening ran after it
+            totals["plan_time_s"] += stopped - begun
+            totals["simplify_time_s"] += clock() - stopped
+            path, space = self.trees.path[:n].copy(), self.context.space
             info = {"attempts": attempt + 1, "length": path_length(path, space.indices, space.weights),
                     "escapes": self.escapes, "refined": tuple(sorted(self.refined))}
             if settings.certify:
