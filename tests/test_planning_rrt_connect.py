@@ -306,7 +306,7 @@ def test_direct_edges_to_a_goal_set_take_steps_like_iterations(arm):
     query = RRTConnectSearch(ctx, np.zeros(3), FAST, 0)  # stretched out in a slot it cannot leave
     goals = np.column_stack([np.linspace(1.2, 2.0, 30), np.zeros(30), np.zeros(30)])  # all out of the slot
     query.add_goals(goals)
-    assert query._run(np.inf, 0, np.zeros(1, dtype=np.int64)) == (0, -1)  # plants the ends, searches nothing
+    assert query._run(np.inf, 0) == (0, -1)  # plants the ends, searches nothing
     trees, space = query.trees, ctx.space
     bounds = space.sampling_bounds(query.start[space.indices])
     assert (trees.counters[DIRECT], trees.counters[DIRECT_END]) == (0, 30)

@@ -59,6 +59,7 @@ from prehensile.settings import (
     FINITE_POSITIVE, FRACTION, NON_NEGATIVE, POSITIVE, at_least, check_fields, check_value, or_none,
 )
 
+_ITERATION_CAP = or_none(at_least(1))
 RUNNING, FOUND, FULL, ENDS = 0, 1, 2, 3  # kernel results (ENDS: an end needs the exact geometry, _plant_ends)
 _TRAPPED, _ADVANCED, _REACHED, _NO_ROOM = 0, 1, 2, 3  # extension results
 _CHECKED, _DEAD = 1, 2  # node flags: edge from the parent fully checked; cut off the tree
@@ -357,28 +358,28 @@ def _plant_ends(ends, screen, nodes, parents, flags, points, counters, idx, w, c
 
 @njit(cache=True, _nrt=False)
 def _query(ends, screen, trees, prune_path, rng, iterations, deadline, compiling, step, res, budget, idx, w, lower,
-           upper, sample, checker, scratch, motion, shortcut, times):
+           upper, rows, checker, scratch, motion, shortcut, times):
     """A query's usual course in one compiled call: on empty trees plant the ends
-    (:func:`_plant_ends`; ENDS if it cannot), :func:`search` (its arguments; ``trees`` = (nodes,
-    parents, flags, points, work, counters, path, marks, owner)), then on FOUND with
-    ``prune_path`` shorten a path of 3 or more waypoints
-    (:func:`~prehensile.planning.shortcut.simplify`, the same generator; ``shortcut`` =
-    (attempts, time limit s, min_gain, evaluation counter (1,) int64, work arrays cum (rows,), qa,
-    qb (dof,))) and set ``counters[PATH_LENGTH]`` to its waypoints. Returns search's result or
-    ENDS; ``times[0]`` is the clock (:func:`~prehensile.clock.clock`) when the search stopped."""
+    (:func:`_plant_ends`; ENDS if it cannot), :func:`search` (its arguments, ``sample`` the
+    first of ``rows`` (3, dof); ``trees`` = (nodes, parents, flags, points, work, counters, path,
+    marks, owner)), then on FOUND with ``prune_path`` shorten a path of 3 or more waypoints
+    (:func:`~prehensile.planning.shortcut.simplify`, the same generator, qa and qb the other
+    rows; ``shortcut`` = (attempts, time limit s, min_gain, evaluation counter (1,) int64, cum
+    (path rows,))) and set ``counters[PATH_LENGTH]`` to its waypoints. Returns search's result
+    or ENDS; ``times[0]`` is the clock (:func:`~prehensile.clock.clock`) when the search stopped."""
     nodes, parents, flags, points, work, counters, path, marks, owner = trees
     if counters[SIZE] == 0 and not _plant_ends(ends, screen, nodes, parents, flags, points, counters, idx, w,
                                                checker, scratch):
         times[0] = kernel_clock(compiling)
         return ENDS
     code = search(nodes, parents, flags, points, work, counters, path, marks, owner, prune_path, rng, iterations,
-                  deadline, compiling, step, res, budget, idx, w, lower, upper, sample, checker, scratch, motion)
+                  deadline, compiling, step, res, budget, idx, w, lower, upper, rows[0], checker, scratch, motion)
     times[0] = kernel_clock(compiling)
     if code == FOUND and prune_path and counters[PATH_LENGTH] >= 3:
-        attempts, limit, min_gain, checks, cum, qa, qb = shortcut
+        attempts, limit, min_gain, checks, cum = shortcut
         counters[PATH_LENGTH] = simplify(path, counters[PATH_LENGTH], marks, attempts, times[0] + limit, compiling,
-                                         min_gain, False, rng, idx, w, res, checker, scratch, motion, checks, cum, qa,
-                                         qb)
+                                         min_gain, False, rng, idx, w, res, checker, scratch, motion, checks, cum,
+                                         rows[1], rows[2])
     return code
 
 
@@ -390,8 +391,7 @@ class _Trees:
     def __init__(self, capacity: int, space: ConfigurationSpace, spare: int) -> None:
         self.space, self.spare, dof = space, spare, space.model.dof
         self.nodes = np.empty((2, capacity, dof))
-        self.parents = np.full((2, capacity), -1, dtype=np.int64)
-        self.flags = np.zeros((2, capacity), dtype=np.int64)
+        self.parents, self.flags = np.empty((2, capacity), dtype=np.int64), np.empty((2, capacity), dtype=np.int64)
         self.points, self.work = np.empty((2, space.n, capacity)), np.empty(capacity)
         self._path_rows(2 * capacity)
         self.counters = np.zeros(9, dtype=np.int64)
@@ -424,7 +424,7 @@ class _Trees:
             return False
         bigger = min(2 * capacity, limit)
         nodes = np.empty((2, bigger, self.nodes.shape[2]))
-        parents, flags = np.full((2, bigger), -1, dtype=np.int64), np.zeros((2, bigger), dtype=np.int64)
+        parents, flags = np.empty((2, bigger), dtype=np.int64), np.empty((2, bigger), dtype=np.int64)
         points = np.empty((2, self.space.n, bigger))
         nodes[:, :capacity], parents[:, :capacity], flags[:, :capacity] = self.nodes, self.parents, self.flags
         points[:, :, :capacity] = self.points
@@ -499,8 +499,10 @@ class RRTConnectSearch:
         self.start_status: PlanStatus | None = None
         self.goal_row: dict[int, int] = {}  # goal tree root node -> row of the goals as given
         self.escapes = 0  # certified escape nodes in the trees
-        # work arrays of _query: the sample (the joints not planned at the start's values), qa, qb, the clock
-        self._sample, self._ab, self._times = self.start.copy(), np.empty((2, ctx.model.dof)), np.zeros(1)
+        # work arrays of _query: rows for the sample (the joints not planned at the start's values), qa and qb;
+        # the clock; the shortening's clearance evaluations
+        self._rows, self._times, self._checks = np.empty((3, ctx.model.dof)), np.zeros(1), np.zeros(1, dtype=np.int64)
+        self._rows[0] = self.start
         self._setup_s = clock() - started  # counted into the next solve's search time
 
     @property
@@ -527,12 +529,13 @@ class RRTConnectSearch:
         if not len(goals):
             raise PrehensileError(f"rrt_connect: q_goal: no goals given (shape {goals.shape})")
         fixed = space.fixed
-        differ = fixed[(np.abs(goals[:, fixed] - self.start[fixed]) > 1e-9).any(axis=0)]
-        if len(differ):
-            raise PrehensileError("rrt_connect: goal and start differ in joints that are not planned "
-                                  f"({', '.join(model.joint_names[i] for i in differ)}; planned: "
-                                  f"{', '.join(space.joint_names)})")
-        goals[:, fixed] = self.start[fixed]  # equal within 1e-9: the path keeps them constant
+        if len(fixed):
+            differ = fixed[(np.abs(goals[:, fixed] - self.start[fixed]) > 1e-9).any(axis=0)]
+            if len(differ):
+                raise PrehensileError("rrt_connect: goal and start differ in joints that are not planned "
+                                      f"({', '.join(model.joint_names[i] for i in differ)}; planned: "
+                                      f"{', '.join(space.joint_names)})")
+            goals[:, fixed] = self.start[fixed]  # equal within 1e-9: the path keeps them constant
         planned, rows = space.goal_turns(goals, self.start)
         first = len(self.goals)
         self.ends = np.concatenate((self.ends, planned))
@@ -595,10 +598,10 @@ class RRTConnectSearch:
                                                                     report, last)
         self.trees = None
 
-    def _run(self, deadline: float, iterations: int, checks: np.ndarray) -> tuple[int, int]:
+    def _run(self, deadline: float, iterations: int) -> tuple[int, int]:
         """Resume the search (on new trees plant the ends first) until ``deadline`` (s,
         :func:`~prehensile.clock.clock`) or for at most ``iterations``, and shorten the path it
-        finds (its clearance evaluations counted in ``checks``); (waypoints of the path in
+        finds (its clearance evaluations counted in ``_checks``); (waypoints of the path in
         ``trees.path``, goal root), (0, -1) without a path, (-1, -1) if the ends leave nothing
         to search (``start_status`` says why, else no goal is usable)."""
         ctx, settings = self.context, self.settings
@@ -614,7 +617,7 @@ class RRTConnectSearch:
         space, chk, trees = ctx.space, ctx.spheres, self.trees
         lower, upper = space.sampling_bounds(self.start[space.indices])
         screen = (*chk.screening, 0.5 * ctx.resolution)
-        shortcut = (settings.shortcut_iterations, settings.shortcut_time_s, settings.shortcut_min_gain, checks)
+        shortcut = (settings.shortcut_iterations, settings.shortcut_time_s, settings.shortcut_min_gain, self._checks)
         last = trees.counters[ITERATIONS] + iterations
         while True:  # again when the trees grew, or when direct edges took some of the iterations
             planting = not trees.counters[SIZE]
@@ -622,8 +625,8 @@ class RRTConnectSearch:
                 return -1, -1
             code = _query(self.ends, screen, trees.arrays, settings.shortcut, self.state,
                           last - trees.counters[ITERATIONS], deadline, COMPILING, settings.step, self.res,
-                          settings.eager_checks, space.indices, space.weights, lower, upper, self._sample, chk.data,
-                          ctx.scratch, ctx.motion_arrays(self.res), (*shortcut, trees.cum, *self._ab), self._times)
+                          settings.eager_checks, space.indices, space.weights, lower, upper, self._rows, chk.data,
+                          ctx.scratch, ctx.motion_arrays(self.res), (*shortcut, trees.cum), self._times)
             if code == ENDS:
                 if not self._plant_exactly(deadline):
                     return -1, -1
@@ -645,27 +648,26 @@ class RRTConnectSearch:
             :class:`PlanResult` with this call's statistics (see :func:`rrt_connect`).
         """
         check_value("RRTConnectSearch.solve: time_budget_s", time_budget_s, FINITE_POSITIVE)
-        check_value("RRTConnectSearch.solve: max_iterations", max_iterations, or_none(at_least(1)))
+        check_value("RRTConnectSearch.solve: max_iterations", max_iterations, _ITERATION_CAP)
         t0 = clock() - self._setup_s
         self._setup_s = 0.0
         deadline = t0 + time_budget_s
-        settings, empty = self.settings, np.zeros((0, self.ctx.model.dof))
+        settings = self.settings
         limit = NO_LIMIT if max_iterations is None else int(max_iterations)
         totals = dict(iterations=0, nodes=0, collision_checks=0, plan_time_s=0.0, simplify_time_s=0.0,
                       certify_time_s=0.0)
-        checks = np.zeros(1, dtype=np.int64)  # the shortening's clearance evaluations
+        self._checks[0] = 0
         report: CertifyReport | None = None
         for attempt in range(settings.certify_retries + 1):
             begun = t0 if attempt == 0 else clock()
             before = None if self.trees is None else self.trees.counters.copy()
-            n, root = self._run(deadline, limit, checks)
+            n, root = self._run(deadline, limit)
             if n < 0:
                 status = self.start_status or (PlanStatus.TIMEOUT if clock() >= deadline else PlanStatus.INVALID_GOAL)
                 totals["plan_time_s"] += clock() - begun
                 # after a failed certification: the covering balls of the refined context reject an end
                 # that the planning balls let through
-                info = {} if report is None else self._failure_info(attempt, report)
-                return PlanResult(status, empty, PlanStats(**totals), info=info)
+                return self._no_path(status, totals, {} if report is None else self._failure_info(attempt, report))
             counters = self.trees.counters
             searched = counters if before is None else counters - before
             totals["iterations"] += int(searched[ITERATIONS])
@@ -674,7 +676,7 @@ class RRTConnectSearch:
             if n == 0:
                 totals["plan_time_s"] += clock() - begun
                 status = PlanStatus.TIMEOUT if report is None else PlanStatus.CERTIFICATION_FAILED
-                return PlanResult(status, empty, PlanStats(**totals), info=self._failure_info(attempt, report))
+                return self._no_path(status, totals, self._failure_info(attempt, report))
             stopped = float(self._times[0])  # the search's end; the shortening ran after it
             totals["plan_time_s"] += stopped - begun
             totals["simplify_time_s"] += clock() - stopped
@@ -686,15 +688,18 @@ class RRTConnectSearch:
                 totals["certify_time_s"] += report.time_s
                 info["certify"] = report
             if report is None or report.ok:
-                totals["collision_checks"] += int(checks[0])
+                totals["collision_checks"] += int(self._checks[0])
                 return PlanResult(PlanStatus.SUCCESS, path, PlanStats(**totals), goal_index=self.goal_row[root],
                                   info=info)
             self._start_over(report, last=attempt + 1 == settings.certify_retries)
             if clock() >= deadline:
                 break
-        totals["collision_checks"] += int(checks[0])
-        return PlanResult(PlanStatus.CERTIFICATION_FAILED, empty, PlanStats(**totals),
-                          info=self._failure_info(attempt, report))
+        totals["collision_checks"] += int(self._checks[0])
+        return self._no_path(PlanStatus.CERTIFICATION_FAILED, totals, self._failure_info(attempt, report))
+
+    def _no_path(self, status: PlanStatus, totals: dict, info: dict) -> PlanResult:
+        """A result without a path: ``status``, statistics ``totals``, ``info``."""
+        return PlanResult(status, np.zeros((0, self.ctx.model.dof)), PlanStats(**totals), info=info)
 
     def _failure_info(self, attempt: int, report: CertifyReport | None) -> dict:
         """``info`` of a result without a path: attempts, the last certification report (or
