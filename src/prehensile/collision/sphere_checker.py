@@ -36,9 +36,10 @@ def obstacle_arrays(obstacles: Sequence[Obstacle], mesh_boxes: int = 32) -> dict
 
     Returns:
         dict with ``otype`` (O,) int64, ``opose`` (O, 3, 4), ``oparam`` (O, 3), ``oaabb``
-        (6, O) (m; rows: min xyz, max xyz) and ``oname`` (O,) names; a mesh obstacle expands
-        into up to ``mesh_boxes`` oriented boxes covering its triangles (:func:`box_cover`:
-        flat patches get flat boxes).
+        (6, O') (m; rows: min xyz, max xyz; O' >= O, the multiple of
+        :data:`~prehensile.collision.sphere_kernels.LANES` above O, the columns beyond O boxes
+        far away) and ``oname`` (O,) names; a mesh obstacle expands into up to ``mesh_boxes``
+        oriented boxes covering its triangles (:func:`box_cover`: flat patches get flat boxes).
     """
     types, poses, params, names = [], [], [], []
     for obstacle in obstacles:
@@ -65,7 +66,7 @@ def obstacle_arrays(obstacles: Sequence[Obstacle], mesh_boxes: int = 32) -> dict
     otype = np.array(types, dtype=np.int64)
     opose = np.array(poses, dtype=float).reshape(-1, 3, 4)
     oparam = np.array(params, dtype=float).reshape(-1, 3)
-    oaabb = np.zeros((6, len(otype)))
+    oaabb = np.full((6, -(-max(len(otype), 1) // K.LANES) * K.LANES), K.FAR)
     for o in range(len(otype)):
         R, p, (a, b, c) = opose[o, :, :3], opose[o, :, 3], oparam[o]
         if otype[o] == K.SPHERE:
@@ -213,12 +214,13 @@ class SphereChecker:
         d = self.obstacle_data
         # frame 0 is the model root: it never moves
         static = groups["frame"] == 0 if still is None else np.asarray(still, dtype=bool)[groups["link"]]
+        pairs = np.array(pairs, dtype=np.int64).reshape(-1, 2)
         self.data = (
             self.T_world_base,
             *(frames[k] for k in ("parent", "jtype", "origin", "axis", "qidx", "mult", "offset")),
             groups["frame"], groups["ranges"], groups["centers"], groups["radii"], groups["bcenter"],
             groups["bradius"], ~static, groups["chunks"], groups["cranges"], groups["cbcenter"], groups["cbradius"],
-            d["otype"], d["opose"], d["oparam"], d["oaabb"], np.array(pairs, dtype=np.int64).reshape(-1, 2),
+            d["otype"], d["opose"], d["oparam"], d["oaabb"], groups["bradius"][pairs].sum(axis=1), pairs,
         )
         """The arrays of the compiled kernels (see :func:`~prehensile.collision.sphere_kernels.clearance`)."""
         self.group_links = groups["link"]

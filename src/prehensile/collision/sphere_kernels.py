@@ -3,8 +3,9 @@
 Obstacles are flat arrays: ``otype`` (O,) (SPHERE, BOX, CYLINDER, CAPSULE), ``opose`` (O, 3, 4)
 the rotation and origin of each shape in the world, ``oparam`` (O, 3) (sphere: radius; box:
 half sides; cylinder and capsule: radius, half length of the z-axis segment) and ``oaabb``
-(6, O) world boxes (rows: min xyz, max xyz). Every distance is exact for a ball against the
-solid shape.
+(6, O') world boxes (rows: min xyz, max xyz), padded with boxes at :data:`FAR` to a multiple
+of :data:`LANES` columns, so that the loop over them runs whole in SIMD lanes. Every distance
+is exact for a ball against the solid shape.
 
 Forward kinematics runs only over the moving rigid bodies ("frames"); balls of links fixed to
 a body are stored in that body's frame. Everything a kernel needs is one tuple ``data`` (see
@@ -25,9 +26,11 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from prehensile.kinematics.kernels import FAST, joint_transform_sincos, sincos_into
+from prehensile.kinematics.kernels import FAST, fmax, fmin, joint_transform_sincos, sincos_into
 
 SPHERE, BOX, CYLINDER, CAPSULE = 0, 1, 2, 3
+LANES = 8  # SIMD lanes of float64 the obstacles' boxes are padded to (AVX-512)
+FAR = 1e30  # m: the corners of the padding boxes, beyond any reach
 
 
 @njit(cache=True, inline="always")
@@ -95,7 +98,7 @@ def make_scratch(data):
     poses[0] = T_world_base
     return (poses, np.empty((max(centers.shape[0], 1), 3)), np.empty((max(gframe.shape[0], 1), 3)),
             np.empty((max(cranges.shape[0], 1), 3)), np.zeros(max(cranges.shape[0], 1), dtype=np.int64),
-            np.empty(max(otype.shape[0], 1)), np.zeros((3, fparent.shape[0])))
+            np.empty(max(data[22].shape[1], 1)), np.zeros((3, fparent.shape[0])))
 
 
 @njit(cache=True, inline="always")
@@ -130,17 +133,17 @@ def clearance(q, data, scratch, cap, scales, slack):
 
     Returns ``min(cap, min over the tested ball pairs of (distance + slack) / scale)``: a ball
     s against an obstacle has scale ``bscale[s]``, two balls of self pair p have scale
-    ``pscale[p, 0] + pscale[p, 1]``. With a scale that bounds how far a
+    ``pscale[p]``. With a scale that bounds how far a
     ball moves (relative to what it is tested against) per unit of a motion parameter, the
     result is how far that parameter may change before any ball can come closer than
     ``-slack`` (m) to anything: with ``slack = 0`` a "free bubble" (Quinlan 1995) per ball
-    pair. With world scales 1, pair scales 1/2 and no slack it is the clearance in metres. A
+    pair. With scales 1 (:func:`unit_scales`) and no slack it is the clearance in metres. A
     collision returns a negative value, ``distance / scale`` of the pair found (the search
     stops there; touching balls count as free). ``cap = 0`` gives a plain collision test.
 
     ``data`` = (T_world_base, fparent, fjtype, forigin, faxis, fqidx, fmult, foffset, gframe,
     granges, centers, radii, gbcenter, gbradius, gtest, gchunks, cranges, cbcenter, cbradius,
-    otype, opose, oparam, oaabb, pairs). Frames (F) are the moving rigid bodies (a link and
+    otype, opose, oparam, oaabb, prad, pairs). Frames (F) are the moving rigid bodies (a link and
     everything fixed to it): ``fparent`` (-1 for the world base), joint type, origin (F, 4, 4)
     in the parent frame, axis, q index, mimic multiplier and offset. Groups (G) are the links
     with balls: ``gframe`` (G,) their frame, ``granges`` (G, 2) their balls ``[start, stop)``
@@ -148,7 +151,8 @@ def clearance(q, data, scratch, cap, scales, slack):
     chunks ``gchunks`` (G, 2): runs of neighbouring balls ``cranges`` (C, 2) with bounding
     balls ``cbcenter`` (C, 3), ``cbradius`` (C,); groups are sorted by frame. ``gtest`` (G,)
     bool marks the groups tested against obstacles, ``pairs`` (P, 2) the group pairs tested
-    against each other. ``scales`` = (gscale (G,), pscale (P, 2), bscale (S,)): ``gscale[g]``
+    against each other, ``prad`` (P,) the sums of their bounding radii. ``scales`` = (gscale
+    (G,), pscale (P,), bscale (S,)): ``gscale[g]``
     must bound the world scales of the group's balls; scales must be positive (a tiny value for
     a ball that does not move: it then only counts if it collides). ``scratch`` comes from
     :func:`make_scratch`.
@@ -156,10 +160,11 @@ def clearance(q, data, scratch, cap, scales, slack):
     Order: forward kinematics, the self pairs (links close in the chain are near in most
     configurations, so the best distance drops early and prunes most world tests), then the
     world. Each pair of bounding balls (group, then chunk) that cannot beat the best distance
-    so far is skipped with everything inside it.
+    so far is skipped with everything inside it; a group's bounding ball is measured against
+    every obstacle's box at once, and the group skipped if none is near enough.
     """
     (_, fparent, fjtype, forigin, faxis, fqidx, fmult, foffset, gframe, granges, centers, radii, gbcenter, gbradius,
-     gtest, gchunks, cranges, cbcenter, cbradius, otype, opose, oparam, oaabb, pairs) = data
+     gtest, gchunks, cranges, cbcenter, cbradius, otype, opose, oparam, oaabb, prad, pairs) = data
     poses, wc, wb, wk, placed, gap2, joint = scratch
     gscale, pscale, bscale = scales
     best = cap
@@ -175,12 +180,12 @@ def clearance(q, data, scratch, cap, scales, slack):
                 placed[k] = 0
             g += 1
     for p in range(pairs.shape[0]):
-        i, j = pairs[p, 0], pairs[p, 1]
-        fi, fj, both = gframe[i], gframe[j], pscale[p, 0] + pscale[p, 1]
+        i, j, both = pairs[p, 0], pairs[p, 1], pscale[p]
         dx, dy, dz = wb[i, 0] - wb[j, 0], wb[i, 1] - wb[j, 1], wb[i, 2] - wb[j, 2]
-        reach = _margin(best, both, slack) + gbradius[i] + gbradius[j]
+        reach = _margin(best, both, slack) + prad[p]
         if dx * dx + dy * dy + dz * dz >= reach * reach:
             continue
+        fi, fj = gframe[i], gframe[j]
         for ki in range(gchunks[i, 0], gchunks[i, 1]):
             _chunk_center(poses, fi, cbcenter, ki, wk, placed)
             dx, dy, dz = wk[ki, 0] - wb[j, 0], wk[ki, 1] - wb[j, 1], wk[ki, 2] - wb[j, 2]
@@ -212,11 +217,16 @@ def clearance(q, data, scratch, cap, scales, slack):
         if not gtest[g]:
             continue
         bx, by, bz, br, f = wb[g, 0], wb[g, 1], wb[g, 2], gbradius[g], gframe[g]
-        for o in range(otype.shape[0]):  # branch-free, so it runs in SIMD lanes
-            ex = max(oaabb[0, o] - bx, bx - oaabb[3, o], 0.0)
-            ey = max(oaabb[1, o] - by, by - oaabb[4, o], 0.0)
-            ez = max(oaabb[2, o] - bz, bz - oaabb[5, o], 0.0)
+        nearest = np.inf
+        for o in range(oaabb.shape[1]):  # branch-free over the padded boxes: it runs in SIMD lanes
+            ex = fmax(fmax(oaabb[0, o] - bx, bx - oaabb[3, o]), 0.0)
+            ey = fmax(fmax(oaabb[1, o] - by, by - oaabb[4, o]), 0.0)
+            ez = fmax(fmax(oaabb[2, o] - bz, bz - oaabb[5, o]), 0.0)
             gap2[o] = ex * ex + ey * ey + ez * ez
+            nearest = fmin(nearest, gap2[o])
+        reach = _margin(best, gscale[g], slack) + br
+        if nearest >= reach * reach:  # every box is farther than reach from the bounding ball
+            continue
         for o in range(otype.shape[0]):
             reach = _margin(best, gscale[g], slack) + br
             if gap2[o] >= reach * reach:  # the bounding ball is farther than reach from the box
@@ -245,7 +255,7 @@ def clearance(q, data, scratch, cap, scales, slack):
 
 def unit_scales(data) -> tuple:
     """Scales for :func:`clearance` that make it the clearance in metres."""
-    return np.ones(data[13].shape[0]), np.full((data[-1].shape[0], 2), 0.5), np.ones(data[11].shape[0])
+    return np.ones(data[13].shape[0]), np.ones(data[-1].shape[0]), np.ones(data[11].shape[0])
 
 
 @njit(cache=True, fastmath=FAST)

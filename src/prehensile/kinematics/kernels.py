@@ -16,12 +16,38 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from llvmlite import ir
+from numba import njit, types
+from numba.core import cgutils
+from numba.extending import intrinsic
 
 FIXED, REVOLUTE, PRISMATIC = 0, 1, 2
 
 # fast-math without the "no NaN / no inf" assumptions, so that the finiteness checks survive
 FAST = {"nsz", "arcp", "contract", "afn", "reassoc"}
+
+
+def _float_intrinsic(name: str):
+    """A compiled-only function ``f(a, b)`` of two floats that calls the LLVM intrinsic ``name``
+    with the "no NaNs" flag (the kernels' arguments are checked finite)."""
+
+    @intrinsic
+    def call(typingctx, a, b):
+        def codegen(context, builder, signature, args):
+            double = ir.DoubleType()
+            fn = cgutils.get_or_insert_function(builder.module, ir.FunctionType(double, [double, double]), name)
+            values = [context.cast(builder, v, t, types.float64) for v, t in zip(args, signature.args)]
+            return builder.call(fn, values, fastmath=("nnan", "nsz"))
+
+        return types.float64(a, b), codegen
+
+    return call
+
+
+# min and max of two floats as LLVM's minnum / maxnum, which its loop vectorizer turns into SIMD
+# reductions (the builtins min and max compile to compares and selects that it keeps scalar)
+fmin = _float_intrinsic("llvm.minnum.f64")
+fmax = _float_intrinsic("llvm.maxnum.f64")
 
 
 # Taylor coefficients of sin and cos, highest first: on |r| <= pi/4 the first term left out is

@@ -327,7 +327,7 @@ class PlanningContext:
             qgroup[g, :len(path)] = model.joint_q_index[path]
         pcut = np.array([[len(paths[group_link[g]]) - len(set(paths[group_link[i]]) & set(paths[group_link[j]]))
                           for g in (i, j)] for i, j in pairs], dtype=np.int64).reshape(-1, 2)
-        scales = (np.empty(len(granges)), np.empty((len(pairs), 2)), np.empty(len(W)))
+        scales = (np.empty(len(granges)), np.empty(len(pairs)), np.empty(len(W)))
         span = np.where(np.isfinite(model.upper - model.lower), model.upper - model.lower, 2 * np.pi)
         self._longest = float(np.max(span @ Wball, initial=0.0))  # farthest a ball can move on any segment
         return (np.ascontiguousarray(Wball), Wgroup, qgroup, pcut, scales, np.empty((0, 3)), np.empty(model.dof),
@@ -465,6 +465,8 @@ class PlanningContext:
         then how many more); for a TIMEOUT also the link pairs whose balls overlap almost
         everywhere (:meth:`overlapping_links`); unchanged if there is no reason. q_start (dof,),
         q_goal (dof,) or (k, dof) as given to the planner (None: no goal configuration)."""
+        if result.success:
+            return result
         ends, more = [("start", q_start)] if "start" in result.blamed_ends else [], 0
         if "goal" in result.blamed_ends and q_goal is not None:
             if np.ndim(q_goal) == 1:

@@ -127,8 +127,7 @@ def _scales(qa, qb, granges, pairs, motion):
             acc += Wgroup[g, i] * dq[qgroup[g, i]]
             below[g, i + 1] = acc
     for p in range(pscale.shape[0]):
-        pscale[p, 0] = max(below[pairs[p, 0], pcut[p, 0]], _TINY)
-        pscale[p, 1] = max(below[pairs[p, 1], pcut[p, 1]], _TINY)
+        pscale[p] = max(below[pairs[p, 0], pcut[p, 0]], _TINY) + max(below[pairs[p, 1], pcut[p, 1]], _TINY)
     longest = 0.0
     for g in range(granges.shape[0]):
         m = _TINY
