@@ -39,7 +39,7 @@ import numpy as np
 from numba import njit
 
 from prehensile.collision import sphere_kernels as SK
-from prehensile.kinematics.kernels import FAST
+from prehensile.kinematics.kernels import FAST, fmax
 
 _CAP = 0.25
 _TINY = 1e-12  # scale of a group that does not move on a segment: it only counts if it collides
@@ -115,27 +115,24 @@ def nearest(points, count, x, idx, w, work):
 def _scales(qa, qb, granges, pairs, motion):
     """Fill the clearance scales for the segment qa -> qb; returns the farthest any ball moves (m)."""
     Wball, Wgroup, qgroup, pcut, (gscale, pscale, bscale), _, _, dq, below = motion
-    bscale[:] = 0.0
+    for s in range(bscale.shape[0]):
+        bscale[s] = _TINY
     for k in range(qa.shape[0]):  # dq[dof] stays 0: the variable of the padding in qgroup
         dq[k] = abs(qb[k] - qa[k])
         if dq[k] != 0.0:  # skips the joints not planned
             for s in range(bscale.shape[0]):
                 bscale[s] += Wball[k, s] * dq[k]
+    longest = 0.0
+    for s in range(bscale.shape[0]):  # in SIMD lanes
+        longest = fmax(longest, bscale[s])
     for g in range(Wgroup.shape[0]):  # below[g, c]: bound from the c joints nearest to g's link
-        acc = 0.0
+        acc = _TINY
         for i in range(Wgroup.shape[1]):
             acc += Wgroup[g, i] * dq[qgroup[g, i]]
             below[g, i + 1] = acc
+        gscale[g] = acc  # at least each of the group's balls' (a sum of the joints' largest weights)
     for p in range(pscale.shape[0]):
-        pscale[p] = max(below[pairs[p, 0], pcut[p, 0]], _TINY) + max(below[pairs[p, 1], pcut[p, 1]], _TINY)
-    longest = 0.0
-    for g in range(granges.shape[0]):
-        m = _TINY
-        for s in range(granges[g, 0], granges[g, 1]):
-            bscale[s] = max(bscale[s], _TINY)
-            m = max(m, bscale[s])
-        gscale[g] = m
-        longest = max(longest, m)
+        pscale[p] = below[pairs[p, 0], pcut[p, 0]] + below[pairs[p, 1], pcut[p, 1]]
     return longest
 
 
