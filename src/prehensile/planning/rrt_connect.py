@@ -26,12 +26,19 @@ at the deadline; all state (trees, counters, the splitmix64 generator seeded fro
 arrays, so a search resumes where it stopped. Trees start small and double when full, up to
 ``max_nodes``.
 
-Afterwards the path is shortcut (:func:`~prehensile.planning.shortcut.shortcut`, random
-attempts and a last pruning) and
+Afterwards the path is shortcut (:func:`~prehensile.planning.shortcut.simplify`, random
+attempts and a last pruning, drawing from the search's generator) and
 certified on the exact geometry (:func:`~prehensile.planning.certify.certify_path`). A path
 that fails certification is discarded and the search repeats: if the context's balls do not
 cover the geometry, with covering balls on the links that collided
 (:meth:`~prehensile.planning.context.PlanningContext.refined`), else with half the resolution.
+
+A query's usual course is one compiled call (:func:`_query`): planting the start and the goals
+on new trees, the search and the shortcutting. Python validates the input before it, plants the
+ends the sphere model alone cannot tell usable (escapes, static contacts, closed meshes:
+:meth:`~prehensile.planning.context.PlanningContext.balls_decide_ends`) and certifies the path
+after it. On the MotionBenchMaker problems the Python between three separate kernels cost
+about a fifth of a median query, in the caches left cold by building its context.
 """
 
 from __future__ import annotations
