@@ -12,7 +12,9 @@ from conftest import MBM, require_shared
 from typer.testing import CliRunner
 
 from prehensile.benchmarking import ratio, time_summary
-from prehensile.benchmarking.mbm import MBMSettings, summarize
+from prehensile.benchmarking.mbm import (
+    MBMSettings, PreparedProblem, _ends_as_asked, benchmark_spheres, load_problems, summarize,
+)
 from prehensile.cli.main import app
 from prehensile.errors import PrehensileError
 
@@ -71,6 +73,7 @@ def test_bench_mbm_ours(problem_dir, tmp_path):
     overall = report["overall"]
     assert overall["solved"] == len(PROBLEMS)  # easy problems, 2 s each
     assert overall["colliding_paths"] == 0  # ours are certified on the exact meshes
+    assert overall["ends_elsewhere"] == 0 and all(run["ours"]["ends_as_asked"] for run in report["runs"])
     assert overall["certify_median_ms"] > 0
     assert report["robot"]["joints"] == [f"panda_joint{i}" for i in range(1, 8)]
     assert report["robot"]["srdf"] == str(MBM / "panda" / "panda.srdf")
@@ -90,6 +93,7 @@ def test_bench_mbm_with_ompl(problem_dir, tmp_path):
     if ratios["paired_problems"]:
         assert ratios["median_speedup"] > 0 and ratios["paired_median_speedup"] > 0
     assert ompl["overall"]["certify_median_ms"] is None  # OMPL does not certify
+    assert ompl["overall"]["ends_elsewhere"] == 0
     for run in report["runs"]:
         assert run["ompl"]["solved"] == (run["ompl"]["status"] == "success") and run["ompl"]["certify_s"] is None
 
@@ -592,3 +596,20 @@ def test_ompl_solves_with_a_budget_beyond_its_clock():
     assert not ctx.check_motion(start, goal)
     result = ompl_rrt_connect(ctx.space, ctx.spheres, start, goal, OMPLSettings(time_budget_s=1e10))
     assert result.success, result.status
+
+
+def test_a_path_counts_only_from_the_start_to_the_goal(problem_dir):
+    """The benchmark's own check of every path's ends (a planner could return a certified,
+    collision-free path to somewhere else)."""
+    from prehensile import robots
+
+    panda = MBM / "panda"
+    model = robots.load(str(panda / "panda.urdf"), str(panda / "panda.srdf"))
+    problem = load_problems(problem_dir, model)[0]
+    spheres = benchmark_spheres(model, panda / "panda_spherized.urdf")
+    prepared = PreparedProblem(model, spheres, problem, MBMSettings())
+    start, goal = prepared.q_start, prepared.q_goal
+    assert _ends_as_asked(prepared, np.array([start, goal]))
+    assert not _ends_as_asked(prepared, np.array([start, start]))
+    assert not _ends_as_asked(prepared, np.array([goal, goal]))
+    assert not _ends_as_asked(prepared, np.array([start, goal + 1e-6]))

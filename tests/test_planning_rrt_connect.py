@@ -368,6 +368,25 @@ def test_search_resumes_its_trees_and_takes_goals_added_later(arm):
     _check_result(ctx, result, start, reachable)
 
 
+def test_new_trees_keep_no_goal_of_the_old_ones(arm):
+    """Trees made anew (as after a failed certification, in a context whose balls reject the
+    goal) search nothing until a usable goal joins: the old trees' goal roots do not carry
+    over (they once did, and the search grew a goal tree from no root: paths to nowhere)."""
+    model, spheres = arm
+    start, goal, other = np.array([0.8, 0.0, 0.0]), np.array([-0.8, 0.0, 0.0]), np.array([1.5, 0.5, -0.5])
+    query = RRTConnectSearch(PlanningContext(model, [], spheres=spheres), start, FAST, 0)
+    query.add_goals(goal)
+    assert query._run(np.inf, 0) == (0, -1) and query.goal_row == {0: 0}  # planted, nothing searched
+    on_goal = _box("on the goal", [0.42, -0.43, 0.1], [0.2, 0.2, 0.2])  # on the arm turned by -0.8 rad
+    query.context, query.trees = PlanningContext(model, [on_goal], spheres=spheres), None
+    assert not query.context.is_valid(goal) and query.context.is_valid(other)
+    assert query._run(np.inf, 50) == (-1, -1) and query.goal_row == {}
+    query.add_goals(other)
+    result = query.solve(2.0)
+    assert result.status is PlanStatus.SUCCESS and result.goal_index == 1
+    np.testing.assert_array_equal(result.path[-1], other)
+
+
 def test_attached_object_is_carried_around_obstacles(arm):
     model, spheres = arm
     post = Obstacle("post", Sphere(0.06), make_pose(position=[0.446, 1.016, 0.1]))  # 0.23 m off the arm

@@ -29,7 +29,10 @@ Measured per problem and planner:
 - **path length**: workspace-weighted length (m) of the returned path, the same metric for both;
 - **exact collision**: every returned path is re-checked here, independently of the planner's
   own certification, with the exact meshes at configurations ``verify_resolution`` m apart
-  (workspace-weighted), so a path that only the spheres call free is counted as colliding.
+  (workspace-weighted), so a path that only the spheres call free is counted as colliding;
+- **ends**: every returned path must start at the request's start and end at its goal
+  configuration (a pose planner's: meet its goal pose), else it counts as unsolved
+  (``ends_elsewhere``).
 
 Timing statistics (median, 95th percentile, mean) are over the solved problems, as in the
 MotionBenchMaker and VAMP reports; ``solved`` / ``total`` and the status counts say how many
@@ -372,6 +375,7 @@ def _record(prepared: PreparedProblem, result, time_s: float, settings: MBMSetti
         # pose planners: the path's end against the goal pose (a pose goal's: its first region's centre)
         "goal_error_m": None, "goal_error_rad": None,
         "goal_satisfied": None,  # pose goals: the path's end meets the request's constraints
+        "ends_as_asked": None,  # the path starts at the start and (a joint goal) ends at the goal
         "attempts": result.info.get("attempts", 1),  # > 1: planned again after a failed certification
     }
     reason = prepared.ctx.explain(result, prepared.q_start, prepared.q_goal).info.get("reason")  # OMPL's has none
@@ -381,11 +385,25 @@ def _record(prepared: PreparedProblem, result, time_s: float, settings: MBMSetti
         record["path_length"] = space.path_length(space.active(result.path))
         record["exact_colliding"] = path_collides_exactly(space, prepared.ctx.exact, result.path,
                                                           settings.verify_resolution)
+        record["ends_as_asked"] = _ends_as_asked(prepared, result.path)
         if prepared.target is not None:
             record.update(_goal_errors(prepared, result.path[-1]))
-            # a path that ends outside the request's constraints solves nothing (its status stays the planner's)
-            record["solved"] = record["goal_satisfied"] is not False
+        # a path that starts or ends elsewhere solves nothing (its status stays the planner's)
+        record["solved"] = record["ends_as_asked"] and record["goal_satisfied"] is not False
     return record
+
+
+def _ends_as_asked(prepared: PreparedProblem, path: np.ndarray) -> bool:
+    """Whether the path (N, dof) starts at the request's start and, for a joint goal planned
+    to (not a pose planner's), ends at its goal configuration, within 1e-9 (a continuous joint's
+    goal counts modulo whole turns)."""
+    space, tolerance = prepared.ctx.space, 1e-9
+    starts = bool(np.all(np.abs(path[0] - prepared.q_start) <= tolerance))
+    if prepared.target is not None:  # a pose planner: its end is checked against the pose (goal errors)
+        return starts
+    goal = space.active(prepared.q_goal)
+    end = space.nearest_turn(space.active(path[-1]), goal)
+    return starts and bool(np.all(np.abs(end - goal) <= tolerance))
 
 
 def _goal_errors(prepared: PreparedProblem, q: np.ndarray) -> dict:
@@ -429,6 +447,8 @@ def summarize(records: Sequence[dict]) -> dict:
         # pose goals: paths that end outside the request's constraints, not solved (None: no pose goal checked)
         "goal_unsatisfied": sum(r.get("goal_satisfied") is False for r in records)
         if any(r.get("goal_satisfied") is not None for r in records) else None,
+        # paths that start or end elsewhere than the request asks (not solved)
+        "ends_elsewhere": sum(r.get("ends_as_asked") is False for r in records),
         "planned_again": sum(r["attempts"] > 1 for r in records),
         "statuses": statuses,
     }

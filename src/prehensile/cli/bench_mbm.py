@@ -130,6 +130,10 @@ def print_report(report: dict) -> None:
     console.print(f"ours: {statuses}. Times: search + simplification, over solved problems; path m: "
                   "workspace-weighted length; colliding: returned paths the exact meshes reject"
                   + ("; speed-up: OMPL's time / ours" if ompl else ""))
+    for name, summary in (("ours", report["overall"]), ("OMPL", ompl["overall"] if ompl else None)):
+        if summary and summary["ends_elsewhere"]:
+            console.print(f"[red]{name}: {summary['ends_elsewhere']} paths start or end elsewhere than their request "
+                          "asks[/] (counted unsolved)")
     checked = [run["ours"]["goal_satisfied"] for run in report["runs"] if run["ours"]["goal_satisfied"] is not None]
     if checked:
         console.print(f"{'' if all(checked) else '[yellow]'}pose goals: {sum(checked)} of {len(checked)} paths end "

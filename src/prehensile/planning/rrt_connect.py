@@ -615,6 +615,7 @@ class RRTConnectSearch:
         if self.trees is None:
             self.trees = _Trees(min(1024, settings.max_nodes), ctx.space,
                                 min(settings.shortcut_iterations, MAX_INSERTED))
+            self.goal_row, self.escapes = {}, 0
         if not self.trees.counters[SIZE]:  # the kernel plants ends the balls decide; the others need escapes here
             if len(self.goals) == 0:
                 return -1, -1
