@@ -802,7 +802,7 @@ def test_free_bubbles_of_self_pairs_hold(slack):
     qs = model.random_configurations(rng, 400)
     blocked = 0
     for qa, qb in zip(qs[:-1], qs[1:]):
-        _scales(qa, qb, data[9], data[-1], motion)
+        _scales(qa, qb, data[-1], motion)
         s = rng.uniform()
         bubble = SK.clearance(qa + s * (qb - qa), data, ctx.scratch, 1.0, motion[4], slack)
         if bubble > 0:

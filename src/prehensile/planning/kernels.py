@@ -112,7 +112,7 @@ def nearest(points, count, x, idx, w, work):
 
 
 @njit(cache=True, fastmath=FAST, _nrt=False)
-def _scales(qa, qb, granges, pairs, motion):
+def _scales(qa, qb, pairs, motion):
     """Fill the clearance scales for the segment qa -> qb; returns the farthest any ball moves (m)."""
     Wball, Wgroup, qgroup, pcut, (gscale, pscale, bscale), _, _, dq, below = motion
     for s in range(bscale.shape[0]):
@@ -160,7 +160,7 @@ def motion_free(qa, qb, res, checker, scratch, motion, counters, budget, new_end
         FREE, BLOCKED, or UNDECIDED when the budget ran out first.
     """
     scales, queue, q = motion[4], motion[5], motion[6]
-    longest = _scales(qa, qb, checker[9], checker[-1], motion)
+    longest = _scales(qa, qb, checker[-1], motion)
     slack = 0.5 * res
     half = slack / max(longest, _TINY)  # the stretch over which no ball moves more than half a step
     lo, hi, spent = 0.0, 1.0, 0  # the stretch (lo, hi) is left to cover
