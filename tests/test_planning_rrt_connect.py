@@ -27,7 +27,7 @@ from prehensile.planning import (
 from prehensile.clock import COMPILING, clock
 from prehensile.collision import sphere_kernels as SK
 from prehensile.planning.certify import CertifyReport, certified_escape, refine_after_failure
-from prehensile.planning.context import ball_joint_weights
+from prehensile.planning.context import ball_joint_weights, motion_weights
 from prehensile.planning.cspace import IDLE_WEIGHT
 from prehensile.planning.jplus_rrt import JPlusRRTSettings, jplus_rrt
 from prehensile.planning.kernels import BLOCKED, FREE, NO_LIMIT, _scales, motion_free
@@ -749,6 +749,34 @@ def test_ball_joint_weights_bound_the_speed_of_every_ball(axes):
                 moved = np.linalg.norm((points @ after[link][:3, :3].T + after[link][:3, 3])
                                        - (points @ before[link][:3, :3].T + before[link][:3, 3]), axis=1)
                 assert moved.max() / 1e-7 <= W[s, k] * (1 + 1e-5) + 1e-9
+
+
+def test_pair_weights_bound_how_fast_every_link_pair_can_close_in():
+    """Panda: branching fingers, a prismatic mimic joint; a ball per link, every pair and the world.
+    A pair's distance changes along a straight segment by no more than its weights allow."""
+    model = robots.load("panda")
+    rng = np.random.default_rng(4)
+    centers, radii = rng.uniform(-0.05, 0.05, size=(model.n_links, 3)), rng.uniform(0.01, 0.1, model.n_links)
+    link_weights = ball_joint_weights(model, np.arange(model.n_links), centers, radii)
+    pairs = np.array([(a, b) for a in range(model.n_links) for b in range(-1, model.n_links) if a != b])
+    W = motion_weights(model, link_weights, pairs)
+    directions = rng.normal(size=(12, 3))
+    directions /= np.linalg.norm(directions, axis=1)[:, None]
+    world = rng.uniform(-1.0, 1.0, size=(12, 3))
+    qs = model.random_configurations(rng, 20)
+    for qa, qb in zip(qs[:-1], qs[1:]):
+        qb = qa + rng.uniform(0.01, 0.3) * (qb - qa)
+        ends = forward_kinematics(model, qa), forward_kinematics(model, qb)
+        bound = W @ np.abs(qb - qa)
+        points = [[(centers[k] + radii[k] * directions) @ T[k][:3, :3].T + T[k][:3, 3] for k in range(model.n_links)]
+                  for T in ends]  # on each link's ball, in the world
+        for p, (a, b) in enumerate(pairs):
+            gaps = [np.linalg.norm(at[a][:, None] - (at[b] if b >= 0 else world)[None], axis=2) for at in points]
+            assert np.abs(gaps[1] - gaps[0]).max() <= bound[p] + 1e-12, (model.link_names[a], b)
+    fingers = [model.link_index(f"panda_{side}finger") for side in ("left", "right")]
+    siblings = W[np.flatnonzero((pairs == fingers).all(axis=1))[0]]  # the arm moves both fingers alike
+    assert np.all(siblings[:7] == 0.0) and siblings[7] > 0.0
+    assert np.all(W[np.flatnonzero((pairs == [fingers[0], -1]).all(axis=1))[0]] > 0.0)
 
 
 @pytest.mark.parametrize("axes", [("z", "z", "z"), ("z", "y", "x")])

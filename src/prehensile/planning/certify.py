@@ -40,6 +40,7 @@ from __future__ import annotations
 import logging
 from dataclasses import dataclass, replace
 from typing import Callable, Sequence
+from weakref import WeakKeyDictionary
 
 import coal
 import numpy as np
@@ -47,14 +48,14 @@ from numba import njit
 
 from prehensile.clock import clock
 from prehensile.collision import sphere_kernels as SK
-from prehensile.collision.exact import ObstaclePart, contains, enclosing_ball, obstacle_parts, robot_parts
+from prehensile.collision.exact import ObstaclePart, contains, obstacle_parts, robot_parts
 from prehensile.collision.sphere_checker import obstacle_arrays
 from prehensile.collision.spheres import SphereModel
 from prehensile.collision.world import Obstacle
 from prehensile.errors import PrehensileError
 from prehensile.kinematics.kernels import fk_into
 from prehensile.model.robot_model import RobotModel
-from prehensile.planning.context import PlanningContext, check_resolution, motion_weights
+from prehensile.planning.context import PlanningContext, ball_joint_weights, check_resolution, motion_weights
 
 log = logging.getLogger(__name__)
 
@@ -89,17 +90,27 @@ class CertifyReport:
     colliding_links: tuple[str, ...] = ()
 
 
-def _link_balls(model: RobotModel) -> tuple[np.ndarray, np.ndarray]:
-    """Per link a ball (centre (L, 3), radius (L,)) containing all its collision geometry;
-    radius -1 for links without geometry."""
-    centers, radii = np.zeros((model.n_links, 3)), np.full(model.n_links, -1.0)
-    for link, geometries in enumerate(model.collisions):
-        balls = [enclosing_ball(g.shape, g.T_link_geom) for g in geometries]
-        if balls:
-            c = np.array([b[0] for b in balls])
-            centers[link] = 0.5 * (c.min(axis=0) + c.max(axis=0))
-            radii[link] = max(float(np.linalg.norm(b[0] - centers[link])) + b[1] for b in balls)
-    return centers, radii
+_LINK_WEIGHTS: WeakKeyDictionary = WeakKeyDictionary()
+
+
+def _link_weights(model: RobotModel) -> np.ndarray:
+    """(L, L) :func:`~prehensile.planning.context.ball_joint_weights` of a ball per link that
+    contains the enclosing balls of its parts (:func:`~prehensile.collision.exact.robot_parts`;
+    rows 0 for links without geometry). Prepared once per model, like the parts: they do not
+    depend on the scene, and computing them took half of a context's construction."""
+    if model not in _LINK_WEIGHTS:
+        parts = robot_parts(model)
+        links = sorted({p.link for p in parts})
+        centers, radii = np.zeros((len(links), 3)), np.zeros(len(links))
+        for row, link in enumerate(links):
+            balls = [(p.center, p.radius) for p in parts if p.link == link]
+            c = np.array([center for center, _ in balls])
+            centers[row] = 0.5 * (c.min(axis=0) + c.max(axis=0))
+            radii[row] = max(float(np.linalg.norm(center - centers[row])) + radius for center, radius in balls)
+        weights = np.zeros((model.n_links, model.n_links))
+        weights[links] = ball_joint_weights(model, np.array(links, dtype=np.int64), centers, radii)
+        _LINK_WEIGHTS[model] = weights
+    return _LINK_WEIGHTS[model]
 
 
 class ExactCertifier:
@@ -149,10 +160,10 @@ class ExactCertifier:
         self._part_link = np.array([p.link for p in self._parts], dtype=np.int64)
         self._boxes = np.array(boxes).reshape(-1, 6)
         self._nesting = _Nesting(self._parts, parts, self._boxes, table)
-        centers, radii = _link_balls(model)
-        self._weights = motion_weights(model, centers, radii, np.array(links, dtype=np.int64).reshape(-1, 2))
+        link_weights = _link_weights(model)
+        self._weights = motion_weights(model, link_weights, np.array(links, dtype=np.int64).reshape(-1, 2))
         # resolution metric: how far any part can move per unit of each variable
-        self._reach = np.max(motion_weights(model, centers, radii, np.column_stack(
+        self._reach = np.max(motion_weights(model, link_weights, np.column_stack(
             [np.arange(model.n_links), np.full(model.n_links, -1)])), axis=0)
         self._cover = _cover_arrays(cover, model.n_links, obstacles)
         self._near = _FAR if cover is None else _COVER_NEAR
@@ -271,11 +282,12 @@ class _Nesting:
         self._obstacle_center = 0.5 * (boxes[:, :3] + boxes[:, 3:])
         self._radius = np.concatenate([[p.radius for p in parts], 0.5 * np.linalg.norm(boxes[:, 3:] - boxes[:, :3],
                                                                                        axis=1)])
+        points = np.split(np.arange(len(self._owner)), np.cumsum([len(a) for a in anchors])[:-1])  # per geometry
         tests = []  # (outer geometry, closed; anchor of the inner geometry; pair)
         for k, (a, o, b) in enumerate(pairs):
             other = n + o if o >= 0 else b
             tests += [(outer, point, k) for outer, inner in ((a, other), (other, a)) if self._closed[outer] is not None
-                      for point in np.flatnonzero(self._owner == inner)]
+                      for point in points[inner]]
         self._outer, self._point, self._pair = np.array(tests, dtype=np.int64).reshape(-1, 3).T
 
     def first_pair(self, poses: np.ndarray) -> int:

@@ -118,11 +118,12 @@ def _refined_balls(balls: SphereModel, cover: SphereModel, links: frozenset) -> 
     return replace_link_balls(balls, cover, set(links))
 
 
-def motion_weights(model: RobotModel, centers: np.ndarray, radii: np.ndarray, pairs: np.ndarray) -> np.ndarray:
+def motion_weights(model: RobotModel, link_weights: np.ndarray, pairs: np.ndarray) -> np.ndarray:
     """(P, dof) rows W with ``W[p] @ |dq|`` bounding the relative motion of pair p (m).
 
     Args:
-        centers, radii: per-link bounding balls (link frames), radius < 0 for links without.
+        link_weights: (L, L) :func:`ball_joint_weights` of one ball per link containing its
+            geometry (row 0 for links without).
         pairs: (P, 2) link indices (a, b); b = -1 means the world (fixed).
 
     A point of link a moves in the frame of the deepest common ancestor of a and b only
@@ -130,19 +131,18 @@ def motion_weights(model: RobotModel, centers: np.ndarray, radii: np.ndarray, pa
     a point of b is at most the sum of their weights over the joints that move exactly one of
     them (variables shared by mimic joints add up).
     """
-    has = np.asarray(radii) >= 0
-    Wl = np.zeros((model.n_links, model.n_links))
-    Wl[has] = ball_joint_weights(model, np.flatnonzero(has), np.asarray(centers)[has], np.asarray(radii)[has])
-    above = [set(model.path_to_root(i)) for i in range(model.n_links)]
-    out = np.zeros((len(pairs), model.dof))
-    for p, (a, b) in enumerate(np.asarray(pairs, dtype=np.int64).reshape(-1, 2)):
-        only_a = above[a] - (above[b] if b >= 0 else set())
-        only_b = above[b] - above[a] if b >= 0 else set()
-        for link, joints in ((a, only_a), (b, only_b)):
-            for k in joints:
-                if model.joint_q_index[k] >= 0:
-                    out[p, model.joint_q_index[k]] += Wl[link, k]
-    return out
+    above = np.zeros((model.n_links, model.n_links), dtype=bool)  # above[i, k]: link k on the way from i to the root
+    for i in range(model.n_links):
+        above[i, model.path_to_root(i)] = True
+    variable = np.zeros((model.n_links, model.dof))  # variable[k, j]: link k's joint moves variable j
+    moved = np.flatnonzero(model.joint_q_index >= 0)
+    variable[moved, model.joint_q_index[moved]] = 1.0
+    pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
+    a, b = pairs[:, 0], pairs[:, 1]
+    above_a = above[a]
+    above_b = above[b] & (b >= 0)[:, None]  # the world: no joints
+    moving = (above_a & ~above_b) * link_weights[a] + (above_b & ~above_a) * link_weights[b]
+    return moving @ variable
 
 
 class PlanningContext:
