@@ -70,10 +70,18 @@ def test_table_output_names_the_joints_and_status():
         assert text in result.stdout
 
 
-def test_unreachable_target_exits_1_with_status():
+def test_unreachable_target_exits_1_with_status_and_says_it_is_out_of_reach():
     result = _run("ik", "panda", "--chain", "arm", "--target", 3, 0, 0, "--budget", 0.02)
     assert result.exit_code == 1, result.output
     assert "status timeout" in result.stdout
+    assert "out of reach: the target is 3.000 m from panda_link0, the base of chain 'arm'" in result.stdout
+    model = robots.load("panda")  # the bound: the tip's offsets from the base add up to it
+    reach = float(result.stdout.split("reaches at most")[1].split()[0])
+    tip = max(np.linalg.norm(link_pose(model, q, "panda_hand_tcp")[:3, 3])
+              for q in model.random_configurations(np.random.default_rng(0), 500))
+    assert 0.8 < tip <= reach < 1.5
+    near = _run("ik", "panda", "--chain", "arm", "--target", 0.1, 0, 1.35, "--budget", 0.02, "--json")
+    assert near.exit_code == 1 and json.loads(near.stdout)["reason"] is None  # unsolved, not provably out of reach
 
 
 def test_an_infinite_budget_is_refused():

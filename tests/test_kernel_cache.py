@@ -42,6 +42,24 @@ def test_cached_kernels_survive_until_a_numba_source_changes(tmp_path, monkeypat
     assert not any(path.exists() for path in current) and pyc.exists()
 
 
+def test_cached_kernels_count_index_files_and_the_cli_says_when_it_compiles(tmp_path, monkeypatch):
+    from typer.testing import CliRunner
+
+    from prehensile.cli.main import app
+
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "cache"))
+    root = tmp_path / "pkg"
+    _package(root)
+    assert kernel_cache.cached_kernels(root) == 0
+    _cache(kernel_cache.cache_folders(root)[1])
+    assert kernel_cache.cached_kernels(root) == 1  # an index file per kernel, beside its compiled code
+    note = "First run: numba compiles the kernels"
+    for cached, command, shown in ((0, ["fk", "nowhere"], True), (0, ["robot", "list"], False),
+                                   (1, ["fk", "nowhere"], False)):
+        monkeypatch.setattr(kernel_cache, "cached_kernels", lambda count=cached: count)
+        assert (note in CliRunner().invoke(app, command).output) == shown, (cached, command)
+
+
 def test_caches_under_numba_cache_dir_are_found(tmp_path, monkeypatch):
     root = tmp_path / "pkg"
     files = _package(root)

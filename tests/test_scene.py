@@ -362,3 +362,22 @@ def test_a_scene_is_drawn_in_the_format_its_file_name_asks_for(tmp_path):
     svg = render_scene(scene, tmp_path / "scene.svg", views=((30.0, 45.0),))
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and b"<svg" in svg.read_bytes()[:1000]
     assert sorted(p.name for p in tmp_path.rglob("*")) == ["out", "scene.png", "scene.svg"]
+
+
+def test_copies_of_a_robot_draw_their_still_links_once_in_the_colours_given():
+    from matplotlib.colors import to_rgb
+
+    from prehensile import robots
+    from prehensile.viz import scene_triangles
+
+    model = robots.load("panda")
+    q = model.neutral_configuration()
+    bent = q.copy()
+    bent[model.joint_index("panda_joint7")] += 0.5  # moves panda_link7 and everything below it
+    alone = scene_triangles(Scene(robots=(PlacedRobot("a", model, q=q),)))[0]
+    copies = Scene(robots=(PlacedRobot("a", model, q=q), PlacedRobot("b", model, q=bent)))
+    triangles, rgba, _ = scene_triangles(copies, robot_colors={"a": "#0000ff", "b": "#ff0000"})
+    assert len(alone) < len(triangles) < 2 * len(alone)  # the copy adds only the links joint 7 moves
+    hue = rgba[:, :3] / rgba[:, :3].max(axis=1, keepdims=True)  # shading scales the colour
+    blue, red = np.all(np.isclose(hue, to_rgb("#0000ff")), axis=1), np.all(np.isclose(hue, to_rgb("#ff0000")), axis=1)
+    assert blue.sum() == len(alone) and red.sum() == len(triangles) - len(alone)

@@ -71,3 +71,8 @@ def refresh(root: Path = PACKAGE_ROOT) -> int:
     except OSError:
         pass  # not writable: numba cannot cache there either
     return len(stale)
+
+
+def cached_kernels(root: Path = PACKAGE_ROOT) -> int:
+    """How many kernels of the sources under root numba has cached (its index files)."""
+    return sum(len(list(folder.glob("*.nbi"))) for folder in cache_folders(root) if folder.is_dir())

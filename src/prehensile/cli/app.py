@@ -10,6 +10,7 @@ import typer
 from rich.console import Console
 from rich.markup import escape
 
+from prehensile import kernel_cache
 from prehensile.errors import PrehensileError
 
 app = typer.Typer(name="prehensile", help="Robots that reach, grasp and place.", no_args_is_help=True,
@@ -18,6 +19,15 @@ bench_app = typer.Typer(help="Benchmarks against peer libraries (JSON + table)."
 app.add_typer(bench_app, name="bench")
 console = Console(highlight=False, width=None if sys.stdout.isatty() else 120)
 err_console = Console(stderr=True, highlight=False)
+COMPILING_COMMANDS = ("fk", "check", "ik", "plan", "demo", "bench")  # they run numba kernels
+
+
+@app.callback()
+def _note_first_compilation(ctx: typer.Context) -> None:
+    """Say why the first run of a command is slow: numba compiles the kernels it uses (tens of seconds)."""
+    if ctx.invoked_subcommand in COMPILING_COMMANDS and "--help" not in sys.argv and not kernel_cache.cached_kernels():
+        err_console.print("[dim]First run: numba compiles the kernels as they are first used, which takes up to a "
+                          "minute; later runs load them from its cache.[/dim]")
 
 EXIT_FREE, EXIT_COLLIDING, EXIT_BAD_INPUT, EXIT_INTERNAL = 0, 1, 2, 3
 

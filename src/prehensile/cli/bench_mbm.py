@@ -21,7 +21,8 @@ from prehensile.errors import PrehensileError, missing_file
 def bench_mbm(
     problems: Path = typer.Argument(..., metavar="PROBLEMS",
                                     help="Folder or .tar.bz2 of MoveIt sceneNNNN.yaml / requestNNNN.yaml pairs."),
-    robot: str = typer.Option(..., "--robot", help="Robot URDF (or a bundled robot name)."),
+    robot: str = typer.Option(..., "--robot", help="Robot URDF (or a bundled robot name): the one the problems "
+                              "were made for; another model plans another problem."),
     spheres: Optional[Path] = typer.Option(None, "--spheres", help="Spherized URDF whose balls to plan with "
                                            "(default: balls generated from the meshes)."),
     pad: bool = typer.Option(False, "--pad/--no-pad", help="--no-pad: plan on the spherized URDF's balls as they "
@@ -128,7 +129,8 @@ def print_report(report: dict) -> None:
     console.print(table)
     statuses = ", ".join(f"{k} {v}" for k, v in report["overall"]["statuses"].items())
     console.print(f"ours: {statuses}. Times: search + simplification, over solved problems; path m: "
-                  "workspace-weighted length; colliding: returned paths the exact meshes reject"
+                  "workspace-weighted length (no robot point travels farther); colliding: returned paths the exact "
+                  "meshes reject"
                   + ("; speed-up: OMPL's time / ours" if ompl else ""))
     for name, summary in (("ours", report["overall"]), ("OMPL", ompl["overall"] if ompl else None)):
         if summary and summary["ends_elsewhere"]:

@@ -20,7 +20,7 @@ from prehensile.ik import ChainSolver, CompleteIKSettings, JacobianIKSettings, s
 from prehensile.ik.analytic_nao import nao_arm_ik
 from prehensile.ik.fabrik import fabrik
 from prehensile.kinematics import link_pose
-from prehensile.model.robot_model import RobotModel
+from prehensile.model.robot_model import PRISMATIC, RobotModel
 from prehensile.spatial import matrix_to_rpy, rpy_to_matrix
 
 METHODS = (*JACOBIAN_METHODS, "fabrik", "analytic")
@@ -76,6 +76,28 @@ def solve_query(model: RobotModel, chain: str, target: np.ndarray, method: str, 
     return solve(target)
 
 
+def out_of_reach(model: RobotModel, chain: str, position: np.ndarray) -> str | None:
+    """Why the tip cannot reach ``position`` (3,) (m, root frame) with the other joints at their
+    neutral values, or None if it may: the target lies farther from the chain's base link than
+    the offsets between the chain's links (and prismatic travel) add up to."""
+    spec = model.chain(chain)
+    path = model.path_to_root(spec.tip_link)
+    below = path[: path.index(model.link_index(spec.base_link))]  # the tip up to the link below the base
+    reach = 0.0
+    for k in below:
+        reach += float(np.linalg.norm(model.joint_origin[k][:3, 3]))
+        q = model.joint_q_index[k]
+        if model.joint_type[k] == PRISMATIC:
+            reach += abs(model.joint_multiplier[k]) * max(abs(model.lower[q]), abs(model.upper[q])) \
+                + abs(model.joint_offset[k])
+    base = link_pose(model, model.neutral_configuration(), spec.base_link)[:3, 3]
+    distance = float(np.linalg.norm(position - base))
+    if distance <= reach:
+        return None
+    return (f"out of reach: the target is {distance:.3f} m from {spec.base_link}, the base of chain '{chain}', "
+            f"whose tip reaches at most {reach:.3f} m from it")
+
+
 def report(model: RobotModel, chain: str, method: str, target: np.ndarray, result) -> dict:
     """JSON-ready summary of an IKResult: chain joint values by name, all solutions, errors."""
     joints = model.chain(chain).joint_names
@@ -96,6 +118,7 @@ def report(model: RobotModel, chain: str, method: str, target: np.ndarray, resul
         "iterations": result.iterations,
         "restarts": result.restarts,
         "time_s": result.time_s,
+        "reason": None if result.success else out_of_reach(model, chain, target if position_only else target[:3, 3]),
     }
 
 
@@ -148,3 +171,5 @@ def print_result(data: dict) -> None:
         "" if rotation is None else f", rotation error {1e3 * rotation:.4f} mrad")
     console.print(f"status [bold {colour}]{data['status']}[/]; {errors}; {data['iterations']} iterations, "
                   f"{data['restarts']} restarts, {1e3 * data['time_s']:.3f} ms")
+    if data["reason"]:
+        console.print(data["reason"])

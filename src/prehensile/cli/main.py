@@ -136,7 +136,8 @@ def check(
 
 def print_check(source: str, result) -> None:
     """Rich tables of a :class:`~prehensile.scene.check.SceneCheck`."""
-    table = Table("robot", "link", "touches", "kind", "depth (mm)", title=f"{source} ({result.method})")
+    console.print(f"{source} ({result.method})", soft_wrap=True)  # a path, not a title wrapped mid-word
+    table = Table("robot", "link", "touches", "kind", "depth (mm)")
     for r in result.robots:
         if r.free:
             table.add_row(r.robot, "-", "[green]free[/]", "", "")

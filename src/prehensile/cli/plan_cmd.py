@@ -220,7 +220,7 @@ def write_outputs(result, context, scene: Scene, robot: PlacedRobot, report: dic
     from prehensile.planning.trajectory import model_limits, time_parameterize
     from prehensile.storage import atomic_write_files, json_bytes
     from prehensile.viz import scene_image
-    from prehensile.viz.picture import robot_color
+    from prehensile.viz.picture import IDLE_ROBOT_COLOR, PATH_GOAL, PATH_START, path_colors
 
     files = {out / "path.json": json_bytes(report)}
     if result.success:
@@ -239,14 +239,18 @@ def write_outputs(result, context, scene: Scene, robot: PlacedRobot, report: dic
         inner = result.path[1:-1]
         picks = inner[np.linspace(0, len(inner) - 1, min(PICTURE_WAYPOINTS, len(inner))).round().astype(int)]
         shown = np.concatenate([result.path[:1], picks, result.path[-1:]])
-        title = (f"{robot.name} from start ({robot_color(0)[1]}) to goal ({robot_color(len(shown) - 1)[1]}): "
-                 f"{len(result.path)} waypoints, "
-                 f"{report['path_length_m']:.2f} m weighted length, {trajectory.duration:.2f} s")
+        title = (f"{robot.name} from start ({PATH_START[1]}) to goal ({PATH_GOAL[1]}): "
+                 f"{len(result.path)} waypoints, {report['path_length_m']:.2f} m (no point of the robot travels "
+                 f"farther), {trajectory.duration:.2f} s")
     else:
         known = [report["start"]] + ([] if report["goal"] is None else [report["goal"]])
         shown = context.space.full(np.array(known))
-        title = f"{robot.name}: no path ({result.status.value}); start{' and goal' if len(known) == 2 else ''} shown"
-    files[out / "plan.png"] = scene_image(picture_scene(scene, robot, shown, context.attached), title=title)
+        title = (f"{robot.name}: no path ({result.status.value}); start ({PATH_START[1]})"
+                 f"{f' and goal ({PATH_GOAL[1]})' if len(known) == 2 else ''} shown")
+    drawn = picture_scene(scene, robot, shown, context.attached)
+    colors = dict(zip((r.name for r in drawn.robots), path_colors(len(shown))))
+    colors.update((r.name, IDLE_ROBOT_COLOR) for r in drawn.robots[len(shown):])
+    files[out / "plan.png"] = scene_image(drawn, title=title, robot_colors=colors)
     written = atomic_write_files(files)
     if not result.success:
         (out / "trajectory.json").unlink(missing_ok=True)  # never leave an earlier plan's trajectory

@@ -23,6 +23,8 @@ from prehensile.storage import atomic_write_bytes
 
 ROBOT_COLORS = ("#8fa3bf", "#a993c4", "#7fb0b8", "#c49bb4", "#9aa7b0")  # the scene's robots in turn
 ROBOT_COLOR_NAMES = ("blue-grey", "lilac", "teal", "mauve", "grey")  # for titles and legends
+PATH_START, PATH_GOAL = ("#4f7cc4", "blue"), ("#dd8a36", "orange")  # a path's robot copies blend from one to the other
+IDLE_ROBOT_COLOR = "#cfcfcf"  # robots beside a drawn path
 OBSTACLE_COLOR = "#c8b28a"
 OBJECT_COLOR = "#6fae6f"
 COLLISION_COLOR = "#e0261b"
@@ -37,6 +39,14 @@ def robot_color(index: int) -> tuple[str, str]:
     """(hex colour, its name) of the scene's robot ``index`` in pictures (the palette repeats)."""
     k = index % len(ROBOT_COLORS)
     return ROBOT_COLORS[k], ROBOT_COLOR_NAMES[k]
+
+
+def path_colors(count: int) -> list[str]:
+    """Hex colours of ``count`` robot copies along a path: :data:`PATH_START` to :data:`PATH_GOAL`."""
+    from matplotlib.colors import to_hex, to_rgb
+
+    start, goal = np.array(to_rgb(PATH_START[0])), np.array(to_rgb(PATH_GOAL[0]))
+    return [to_hex(start + t * (goal - start)) for t in np.linspace(0.0, 1.0, count)]
 
 
 def decimate(vertices: np.ndarray, faces: np.ndarray, max_faces: int) -> tuple[np.ndarray, np.ndarray]:
@@ -109,8 +119,11 @@ def scene_triangles(
     colliding_bodies: Iterable[str] = (),
     kind: str = "collision",
     max_faces: int = 300,
+    robot_colors: Mapping[str, str] | None = None,
 ) -> tuple[np.ndarray, np.ndarray, list[tuple[str, np.ndarray]]]:
     """All triangles of ``scene`` with their colours, and label anchors for colliding parts.
+    A link geometry at the very pose where an earlier robot of the same model has it (copies
+    of a robot along a path, where the joints not planned hold still) is drawn once.
 
     Args:
         scene: robots are drawn at their configurations.
@@ -118,6 +131,7 @@ def scene_triangles(
         colliding_bodies: scene bodies to draw red.
         kind: "collision" or "visual" robot geometry.
         max_faces: decimation target per mesh.
+        robot_colors: robot name -> colour (hex) instead of :func:`robot_color` of its index.
 
     Returns:
         (triangles (m, 3, 3) in m, rgba (m, 4), [(label, anchor point (3,))]).
@@ -127,14 +141,20 @@ def scene_triangles(
     cache: dict = {}
     parts: list[tuple[np.ndarray, str]] = []
     labels: list[tuple[str, np.ndarray]] = []
+    drawn: set[tuple] = set()  # (model, link, geometry, pose) already drawn
     for r, robot in enumerate(scene.robots):
         red = colliding_links.get(robot.name, set())
+        color = (robot_colors or {}).get(robot.name) or robot_color(r)[0]
         per_link: dict[str, list[np.ndarray]] = {}
-        for link, geometry, T in robot.world_geometries(kind):
+        for g, (link, geometry, T) in enumerate(robot.world_geometries(kind)):
+            key = (id(robot.model), link, g, np.asarray(T).tobytes())
+            if key in drawn and link not in red:
+                continue
+            drawn.add(key)
             per_link.setdefault(link, []).append(_triangles(geometry, T, max_faces, cache))
         for link, tris in per_link.items():
             tris = np.concatenate(tris)
-            parts.append((tris, COLLISION_COLOR if link in red else robot_color(r)[0]))
+            parts.append((tris, COLLISION_COLOR if link in red else color))
             if link in red:
                 labels.append((f"{robot.name}/{link}", tris.reshape(-1, 3).mean(axis=0)))
     for bodies, color in ((scene.obstacles, OBSTACLE_COLOR), (scene.objects, OBJECT_COLOR)):
@@ -168,6 +188,7 @@ def scene_image(
     size: tuple[float, float] = (14.0, 7.0),
     dpi: int = 110,
     image_format: str = "png",
+    robot_colors: Mapping[str, str] | None = None,
 ) -> bytes:
     """Draw ``scene`` from each of ``views`` side by side.
 
@@ -182,6 +203,7 @@ def scene_image(
         size: figure size in inches (width, height).
         dpi: resolution in dots per inch.
         image_format: a matplotlib file format ("png", "svg", "pdf", ...).
+        robot_colors: robot name -> colour (hex) instead of the palette's (:func:`robot_color`).
 
     Returns:
         The image file's bytes.
@@ -190,7 +212,7 @@ def scene_image(
     from matplotlib.figure import Figure
     from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
-    triangles, rgba, labels = scene_triangles(scene, colliding_links, colliding_bodies, kind, max_faces)
+    triangles, rgba, labels = scene_triangles(scene, colliding_links, colliding_bodies, kind, max_faces, robot_colors)
     labels = _spread(labels)
     points = triangles.reshape(-1, 3) if len(triangles) else np.zeros((1, 3))
     lo, hi = points.min(axis=0), points.max(axis=0)
