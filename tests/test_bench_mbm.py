@@ -486,7 +486,7 @@ def test_every_request_is_checked_before_planning(tmp_path, monkeypatch):
     request = yaml.safe_load(last.read_text())
     request["goal_constraints"][0]["joint_constraints"].pop()
     last.write_text(yaml.safe_dump(request))
-    monkeypatch.setattr(mbm, "_warm_up", lambda *args: pytest.fail("planning began before every request was checked"))
+    monkeypatch.setattr(mbm, "warm_up", lambda *args: pytest.fail("planning began before every request was checked"))
     with pytest.raises(PrehensileError, match=f"{last.name}: .*no goal for planned joint"):
         mbm.run_mbm(tmp_path, robots.load("armar3"), (None, None))
 

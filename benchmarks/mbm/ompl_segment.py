@@ -38,11 +38,11 @@ def main() -> None:
     weights = mbm.PreparedProblem(model, spheres, problems[0], settings).ctx.space.weights
     # the workspace resolution whose segment (resolution / |w|_2, ompl_peer.segment_fraction) is --segment rad
     settings = dataclasses.replace(settings, resolution=args.segment * float(np.linalg.norm(weights)))
-    mbm._warm_up(model, spheres, problems[0], settings)  # compiles the sphere checker before timing
+    mbm.warm_up(model, spheres, problems[0], settings)  # compiles the sphere checker before timing
     runs = []
     for problem in problems:
         prepared = mbm.PreparedProblem(model, spheres, problem, settings)
-        runs.append({"scenario": problem.scenario, "index": problem.index, "ompl": mbm._ompl(prepared, settings)})
+        runs.append({"scenario": problem.scenario, "index": problem.index, "ompl": mbm.run_ompl(prepared, settings)})
     summary = mbm.summarize([run["ompl"] for run in runs])
     atomic_write_json(args.json, {"benchmark": "mbm_ompl_segment", "segment_rad": args.segment,
                                   "settings": dataclasses.asdict(settings), "overall": summary,

@@ -328,7 +328,8 @@ def problem_seed(settings: MBMSettings, problem: MBMProblem) -> list[int]:
     return [settings.seed, zlib.crc32(problem.scenario.encode()), problem.index]
 
 
-def _ours(prepared: PreparedProblem, settings: MBMSettings) -> dict:
+def run_ours(prepared: PreparedProblem, settings: MBMSettings) -> dict:
+    """The per-problem record of our planner (``settings.planner``) on one prepared problem."""
     rng = np.random.default_rng(problem_seed(settings, prepared.problem))
     start = time.perf_counter()
     result = _plan(prepared, settings, rng)
@@ -354,7 +355,8 @@ def _plan(prepared: PreparedProblem, settings: MBMSettings, rng: np.random.Gener
                         settings.time_budget_s, rng)
 
 
-def _ompl(prepared: PreparedProblem, settings: MBMSettings) -> dict:
+def run_ompl(prepared: PreparedProblem, settings: MBMSettings) -> dict:
+    """The per-problem record of OMPL's RRT-Connect with our sphere checker on one prepared problem."""
     from prehensile.benchmarking.ompl_peer import OMPLSettings, ompl_rrt_connect
 
     ompl_settings = OMPLSettings(time_budget_s=settings.time_budget_s, resolution=settings.resolution)
@@ -510,13 +512,13 @@ def run_mbm(problems_path: str | Path, model: RobotModel, spheres: tuple[SphereM
     check_problems(model, problems, settings.planner)
     if progress is not None:
         progress(0, len(problems), None)
-    _warm_up(model, spheres, problems[0], settings)
+    warm_up(model, spheres, problems[0], settings)
     runs = []
     for number, problem in enumerate(problems):
         prepared = PreparedProblem(model, spheres, problem, settings)
-        run = {"scenario": problem.scenario, "index": problem.index, "ours": _ours(prepared, settings)}
+        run = {"scenario": problem.scenario, "index": problem.index, "ours": run_ours(prepared, settings)}
         if settings.compare_ompl:
-            run["ompl"] = _ompl(prepared, settings)
+            run["ompl"] = run_ompl(prepared, settings)
         runs.append(run)
         if progress is not None:
             progress(number + 1, len(problems), run)
@@ -542,7 +544,7 @@ def run_mbm(problems_path: str | Path, model: RobotModel, spheres: tuple[SphereM
     return report
 
 
-def _warm_up(model: RobotModel, spheres: tuple[SphereModel, SphereModel | None], problem: MBMProblem,
+def warm_up(model: RobotModel, spheres: tuple[SphereModel, SphereModel | None], problem: MBMProblem,
              settings: MBMSettings) -> None:
     """Compile (or load from numba's cache) every kernel on one problem before timing, the
     clearance of certified escapes too (few problems need one)."""
