@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import importlib.util
+
 import json
 import tarfile
 from pathlib import Path
@@ -167,6 +169,36 @@ def test_pose_planners_reach_the_goal_pose(tmp_path, planner, position_tolerance
     for run in report["runs"]:
         assert run["ours"]["goal_error_m"] <= position_tolerance and run["ours"]["goal_error_rad"] <= rotation_tolerance
     assert overall["goal_error_m_max"] == max(run["ours"]["goal_error_m"] for run in report["runs"])
+
+
+@pytest.mark.parametrize("planner", ["rrt_connect", "ik_rrt"])
+def test_alternative_joint_goals_are_a_goal_set(tmp_path, planner):
+    """MoveIt's goal_constraints are alternatives: the first goal here lies beyond a joint limit,
+    so every planner must end at the second (rrt_connect and OMPL exactly; IK-RRT at a pose
+    of one of them)."""
+    import yaml
+
+    folder = tmp_path / "problems" / "shelf_armar3"
+    _write_armar_problems(folder)
+    for path in sorted(folder.glob("request*.yaml")):
+        request = yaml.safe_load(path.read_text())
+        (goal,) = request["goal_constraints"]
+        beyond = {"joint_constraints": [dict(c, position=c["position"] + (9.0 if k == 0 else 0.0))
+                                        for k, c in enumerate(goal["joint_constraints"])]}
+        request["goal_constraints"] = [beyond, goal]
+        path.write_text(yaml.safe_dump(request))
+    ompl = ["--compare-ompl"] if planner == "rrt_connect" and importlib.util.find_spec("ompl") else []
+    out = tmp_path / "report.json"
+    result = runner.invoke(app, ["bench", "mbm", str(tmp_path / "problems"), "--robot", "armar3", "--planner", planner,
+                                 "--budget", "5", "--json", str(out), *ompl])
+    assert result.exit_code == 0, result.output
+    report = json.loads(out.read_text())
+    assert report["overall"]["solved"] == len(ARMAR_PROBLEMS) and report["overall"]["ends_elsewhere"] == 0
+    if ompl:
+        assert report["ompl"]["overall"]["solved"] == len(ARMAR_PROBLEMS)
+        assert report["ompl"]["overall"]["ends_elsewhere"] == 0
+    if planner == "ik_rrt":
+        assert report["overall"]["goal_error_m_max"] <= 1e-4
 
 
 def _pose_goal_requests(folder: Path) -> None:

@@ -549,12 +549,23 @@ def test_pose_goal_targets_keep_their_margin(rotation_vector):
     np.testing.assert_allclose(position_only.closest(T_world_frame, outside, margin), closest[:3, 3], atol=1e-12)
 
 
-def test_alternative_goals_are_named_and_the_first_is_read(caplog):
+def test_alternative_goals_are_all_read_and_of_one_kind():
     goals = [{"joint_constraints": [{"joint_name": "j1", "position": value}]} for value in (0.5, -0.5)]
-    with caplog.at_level(logging.WARNING):
-        request = motion_plan_request_from_dict({"group_name": "arm", "goal_constraints": goals}, "r.yaml")
-    assert dict(request.goal) == {"j1": 0.5}
-    assert "r.yaml: goal_constraints: 2 alternative goals given; only goal_constraints[0] is read" in caplog.text
+    request = motion_plan_request_from_dict({"group_name": "arm", "goal_constraints": goals}, "r.yaml")
+    assert dict(request.goal) == {"j1": 0.5} and [dict(g) for g in request.joint_goals] == [{"j1": 0.5}, {"j1": -0.5}]
+    assert request.pose_goals == () and request.pose_goal is None
+    position = {"link_name": "hand", "constraint_region": {"primitives": [{"type": 2, "dimensions": [0.1]}],
+                                                           "primitive_poses": [{"position": [0.4, 0, 0.5]}]}}
+    poses = [{"position_constraints": [dict(position, target_point_offset=[0, 0, z])]} for z in (0.0, 0.1)]
+    request = motion_plan_request_from_dict({"goal_constraints": poses}, "r.yaml")
+    assert request.goal == {} and request.joint_goals == () and len(request.pose_goals) == 2
+    assert np.allclose(request.pose_goals[1].offset, [0, 0, 0.1]) and request.pose_goals[0] is request.pose_goal
+    with pytest.raises(SceneError, match="r.yaml: goal_constraints: joint goals and pose goals mixed as alternatives"):
+        motion_plan_request_from_dict({"goal_constraints": [goals[0], poses[0]]}, "r.yaml")
+    with pytest.raises(SceneError, match=r"r.yaml: goal_constraints\[1\] has no joint_constraints"):
+        motion_plan_request_from_dict({"goal_constraints": [goals[0], {}]}, "r.yaml")
+    with pytest.raises(SceneError, match="r.yaml: goal_constraints: no goal given"):
+        motion_plan_request_from_dict({"goal_constraints": []}, "r.yaml")
 
 
 @pytest.mark.parametrize("changes, message", [

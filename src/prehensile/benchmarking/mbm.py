@@ -177,20 +177,22 @@ def check_request(model: RobotModel, problem: MBMProblem, joints: Sequence[str])
         PrehensileError: naming the request file, the joints at fault and the planned ones.
     """
     request = problem.request
-    where = f"{request.source}: goal_constraints[0].joint_constraints"
     planned = ", ".join(joints)
     mimics = model.mimic_joints
     known = [*model.joint_names, *mimics]
-    unknown = [j for j in request.goal if j not in known]
-    if unknown:
-        raise PrehensileError(f"{where}: robot '{model.name}' has no joint {', '.join(unknown)} (planned: {planned})")
-    outside = [j for j in request.goal if (model.joint_names[mimics[j][0]] if j in mimics else j) not in joints]
-    if outside:
-        raise PrehensileError(f"{where}: {', '.join(outside)} not in the planned group '{request.group}' "
-                              f"(planned: {planned})")
-    missing = [j for j in joints if j not in request.goal]
-    if missing and request.pose_goal is None:
-        raise PrehensileError(f"{where}: no goal for planned joint(s) {', '.join(missing)} (planned: {planned})")
+    for k, goal in enumerate(request.joint_goals):
+        where = f"{request.source}: goal_constraints[{k}].joint_constraints"
+        unknown = [j for j in goal if j not in known]
+        if unknown:
+            raise PrehensileError(f"{where}: robot '{model.name}' has no joint {', '.join(unknown)} "
+                                  f"(planned: {planned})")
+        outside = [j for j in goal if (model.joint_names[mimics[j][0]] if j in mimics else j) not in joints]
+        if outside:
+            raise PrehensileError(f"{where}: {', '.join(outside)} not in the planned group '{request.group}' "
+                                  f"(planned: {planned})")
+        missing = [j for j in joints if j not in goal]
+        if missing:
+            raise PrehensileError(f"{where}: no goal for planned joint(s) {', '.join(missing)} (planned: {planned})")
     missing = [j for j in joints if j not in request.start]
     if missing:
         unknown = [j for j in request.start if j not in known]
@@ -220,8 +222,10 @@ class PreparedProblem:
             self.T_world_frame, self.T_tip_tcp = pose_goal_frames(model, problem, self.tip, self.q_start,
                                                                   T_world_base)
             self.target, self.q_goal = pose_goal.target(self.T_world_frame), None
-        elif self.tip is not None:
-            self.target = link_pose(model, self.q_goal, self.tip, T_world_base=T_world_base)
+        elif self.tip is not None:  # (4, 4), or (k, 4, 4) for k alternative goals
+            self.target = np.array([link_pose(model, q, self.tip, T_world_base=T_world_base)
+                                    for q in np.reshape(self.q_goal, (-1, model.dof))]).reshape(
+                np.shape(self.q_goal)[:-1] + (4, 4))
         self.ctx = PlanningContext(model, scene.collision_obstacles(robot), joints=joints, q_ref=self.q_start,
                                    T_world_base=T_world_base, spheres=spheres[0], cover=spheres[1],
                                    attached=scene.attached_objects(robot), resolution=settings.resolution,
@@ -289,13 +293,16 @@ def _unplanned_outside(model: RobotModel, q_start: np.ndarray, joints: Sequence[
 
 
 def _clip_unplanned(model: RobotModel, problem: MBMProblem, joints: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
-    """The request's (start, goal) (dof,) with the joints not planned clipped into their limits
-    (MBM's requests hold Panda finger values beyond some models' limits; :func:`check_problems`
-    names them)."""
-    q_start = problem.request.start_configuration(model)
-    q_goal = problem.request.goal_configuration(model)
+    """The request's start (dof,) and goal (dof,) (the start for a pose goal; (k, dof) for k
+    alternative joint goals) with the joints not planned clipped into their limits (MBM's
+    requests hold Panda finger values beyond some models' limits; :func:`check_problems` names
+    them)."""
+    request = problem.request
+    q_start = request.start_configuration(model)
+    goals = request.goal_configurations(model)
+    q_goal = goals if len(goals) > 1 else request.goal_configuration(model)
     outside = _unplanned_outside(model, q_start, joints)
-    q_start[outside] = q_goal[outside] = np.clip(q_start[outside], model.lower[outside], model.upper[outside])
+    q_start[outside] = q_goal[..., outside] = np.clip(q_start[outside], model.lower[outside], model.upper[outside])
     return q_start, q_goal
 
 
@@ -311,7 +318,7 @@ def check_problems(model: RobotModel, problems: Sequence[MBMProblem], planner: s
         joints = planned_joints(model, problem)
         check_request(model, problem, joints)
         tip = goal_tip(model, problem, planner)
-        problem.request.goal_configuration(model)  # and the start it builds on
+        problem.request.goal_configurations(model)  # and the start they build on
         q_start = problem.request.start_configuration(model)
         if problem.request.pose_goal is not None:
             robots = problem.scene.robots
@@ -397,15 +404,15 @@ def _record(prepared: PreparedProblem, result, time_s: float, settings: MBMSetti
 
 def _ends_as_asked(prepared: PreparedProblem, path: np.ndarray) -> bool:
     """Whether the path (N, dof) starts at the request's start and, for a joint goal planned
-    to (not a pose planner's), ends at its goal configuration, within 1e-9 (a continuous joint's
-    goal counts modulo whole turns)."""
+    to (not a pose planner's), ends at its goal configuration (one of them), within 1e-9 (a
+    continuous joint's goal counts modulo whole turns)."""
     space, tolerance = prepared.ctx.space, 1e-9
     starts = bool(np.all(np.abs(path[0] - prepared.q_start) <= tolerance))
     if prepared.target is not None:  # a pose planner: its end is checked against the pose (goal errors)
         return starts
-    goal = space.active(prepared.q_goal)
-    end = space.nearest_turn(space.active(path[-1]), goal)
-    return starts and bool(np.all(np.abs(end - goal) <= tolerance))
+    end = space.active(path[-1])
+    return starts and any(np.all(np.abs(space.nearest_turn(end, goal) - goal) <= tolerance)
+                          for goal in space.active(np.reshape(prepared.q_goal, (-1, space.model.dof))))
 
 
 def _goal_errors(prepared: PreparedProblem, q: np.ndarray) -> dict:
@@ -415,7 +422,8 @@ def _goal_errors(prepared: PreparedProblem, q: np.ndarray) -> dict:
     reached = link_pose(model, q, prepared.tip, prepared.T_tip_tcp, T_world_base=T_world_base)
     if target.shape == (3,):
         errors = {"goal_error_m": float(np.linalg.norm(reached[:3, 3] - target)), "goal_error_rad": None}
-    else:
+    else:  # the nearest of alternative targets (k, 4, 4)
+        target = min(target.reshape(-1, 4, 4), key=lambda T: np.linalg.norm(reached[:3, 3] - T[:3, 3]))
         errors = {"goal_error_m": float(np.linalg.norm(reached[:3, 3] - target[:3, 3])),
                   "goal_error_rad": float(np.linalg.norm(rotation_error(target[:3, :3], reached[:3, :3])))}
     pose_goal = prepared.problem.request.pose_goal

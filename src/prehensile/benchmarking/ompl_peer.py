@@ -99,12 +99,14 @@ def segment_fraction(space: ConfigurationSpace, resolution: float, lower: np.nda
 
 def ompl_rrt_connect(space: ConfigurationSpace, checker: SphereChecker, q_start: np.ndarray, q_goal: np.ndarray,
                      settings: OMPLSettings = OMPLSettings(), seed: int = 0) -> PlanResult:
-    """Plan from q_start to q_goal (dof,) with OMPL's RRT-Connect and our sphere checker.
+    """Plan from q_start (dof,) to q_goal (dof,) or any goal of a set (k, dof) with OMPL's
+    RRT-Connect and our sphere checker.
 
     Args:
         space: the planned joints, their limits and metric; the other joints stay at ``space.q_ref``.
         checker: validity of full configurations.
-        q_start, q_goal: full configurations (rad or m); only the planned joints are used.
+        q_start, q_goal: full configurations (rad or m); only the planned joints are used. Goals
+            the spheres reject are left out of a goal set (OMPL's ``GoalStates``).
         settings: see :class:`OMPLSettings`.
         seed: OMPL's process-wide seed (see :func:`seed_ompl`).
 
@@ -115,20 +117,20 @@ def ompl_rrt_connect(space: ConfigurationSpace, checker: SphereChecker, q_start:
     ob, og, ou = _ompl()
     seed_ompl(seed)
     ou.setLogLevel(ou.LOG_ERROR)
-    ends = space.full(np.stack([space.active(q_start), space.active(q_goal)]))
+    ends = space.full(np.concatenate([space.active(q_start)[None], space.active(q_goal).reshape(-1, space.n)]))
     free = checker.is_free(ends) & space.model.within_limits(ends)
-    if not free.all():  # OMPL would spend its whole budget sampling for a valid goal
+    if not free[0] or not free[1:].any():  # OMPL would spend its whole budget sampling for a valid goal
         status = PlanStatus.INVALID_START if not free[0] else PlanStatus.INVALID_GOAL
-        return PlanResult(status, np.zeros((0, space.model.dof)), PlanStats(collision_checks=2))
+        return PlanResult(status, np.zeros((0, space.model.dof)), PlanStats(collision_checks=len(ends)))
     n = space.n
     state_space = ob.RealVectorStateSpace(n)
     bounds = ob.RealVectorBounds(n)
     # an unbounded (continuous) joint is sampled in one turn around the start, and its goal is
     # taken within pi of the start, as ours does
-    active = space.active(ends)
-    active[1] = space.nearest_turn(active[1], active[0])
+    active = space.active(ends[free])
+    active[1:] = space.nearest_turn(active[1:], active[0])
     lower, upper = space.sampling_bounds(active[0])
-    lower, upper = np.minimum(lower, active[1]), np.maximum(upper, active[1])
+    lower, upper = np.minimum(lower, active[1:].min(axis=0)), np.maximum(upper, active[1:].max(axis=0))
     for k in range(n):
         bounds.setLow(k, float(lower[k]))
         bounds.setHigh(k, float(upper[k]))
@@ -148,10 +150,16 @@ def ompl_rrt_connect(space: ConfigurationSpace, checker: SphereChecker, q_start:
     setup.setStateValidityChecker(is_valid)
     info = setup.getSpaceInformation()
     info.setStateValidityCheckingResolution(segment_fraction(space, settings.resolution, lower, upper))
-    start, goal = state_space.allocState(), state_space.allocState()
+    start, goal = state_space.allocState(), ob.GoalStates(info)
     for k in range(n):
-        start[k], goal[k] = float(active[0, k]), float(active[1, k])
-    setup.setStartAndGoalStates(start, goal)
+        start[k] = float(active[0, k])
+    setup.setStartState(start)
+    for row in active[1:]:
+        state = state_space.allocState()
+        for k in range(n):
+            state[k] = float(row[k])
+        goal.addState(state)
+    setup.setGoal(goal)
     setup.setPlanner(og.RRTConnect(info))
     setup.setup()
     t0 = time.perf_counter()

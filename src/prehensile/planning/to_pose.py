@@ -32,12 +32,12 @@ def plan_to_pose(ctx: PlanningContext, q_start: np.ndarray, target: np.ndarray |
                  T_tip_tcp: np.ndarray | None = None, region: tuple | None = None) -> PlanResult:
     """Plan from ``q_start`` (dof,) to any configuration that puts the tool frame (the tip link
     of ``chain`` times ``T_tip_tcp`` (4, 4), default the tip link itself) at the world pose
-    ``target`` (4, 4), or (ik_rrt only) its origin at the world position ``target`` (3,) (m);
-    or anywhere in a goal ``region``.
+    ``target`` (4, 4) or one of the poses (k, 4, 4), or (ik_rrt only) its origin at the world
+    position ``target`` (3,) or one of (k, 3) (m); or anywhere in a goal ``region``.
 
     Args:
         ctx: planning context that plans the chain's joints.
-        target: the tool's world pose or position; None with a ``region``.
+        target: the tool's world pose(s) or position(s); None with a ``region``.
         planner: one of :data:`POSE_PLANNERS`: ``ik_rrt`` (goal configurations sampled by IK
             while the trees grow) or ``jplus_rrt`` (Jacobian steps toward the pose).
         time_budget_s: search time limit (s).
@@ -65,16 +65,15 @@ def plan_to_pose(ctx: PlanningContext, q_start: np.ndarray, target: np.ndarray |
     if planner == "jplus_rrt":
         if not callable(target):
             target = _checked_target(target, planner)
-            if target.shape == (3,):
+            if target.shape[-1] == 3:
                 raise PrehensileError("jplus_rrt steps toward a full pose: give a (4, 4) target, or plan to a "
                                       "position with ik_rrt")
-            target = target[None]
         return jplus_rrt(ctx, q_start, target, JPlusRRTSettings(time_budget_s=time_budget_s), rng,
                          T_tip_tcp=T_tip_tcp, chain=chain)
     target = _checked_target(target, planner)
     solver = ChainSolver(ctx.model, chain, T_tip_tcp=T_tip_tcp, T_world_root=ctx.T_world_base,
-                         settings=JacobianIKSettings(position_only=target.shape == (3,)))
-    return ik_rrt(ctx, q_start, grasp_sampler(ctx, solver, target[None], q_start, more),
+                         settings=JacobianIKSettings(position_only=target.shape[-1] == 3))
+    return ik_rrt(ctx, q_start, grasp_sampler(ctx, solver, target, q_start, more),
                   IKRRTSettings(time_budget_s=time_budget_s), rng)
 
 
@@ -88,10 +87,15 @@ def region_tool_frame(model, tip: str, goal, q: np.ndarray, planned: set[int]) -
 
 
 def _checked_target(target, planner: str) -> np.ndarray:
+    """The target as poses (k, 4, 4) or positions (k, 3)."""
     target = np.asarray(target, dtype=float)
-    if target.shape not in ((4, 4), (3,)):
-        raise PrehensileError(f"{planner}: the target must be a (4, 4) pose or a (3,) position, got {target.shape}")
-    return target
+    if target.shape in ((4, 4), (3,)):
+        return target[None]
+    if target.ndim == 3 and target.shape[1:] == (4, 4) or target.ndim == 2 and target.shape[1] == 3:
+        if len(target):
+            return target
+    raise PrehensileError(f"{planner}: the target must be a (4, 4) pose, a (3,) position or a non-empty set of "
+                          f"them, (k, 4, 4) or (k, 3), got {target.shape}")
 
 
 def _region_goal(ctx: PlanningContext, q_start: np.ndarray, chain: str, planner: str, goal, T_world_frame: np.ndarray):

@@ -23,12 +23,13 @@ MoveIt conventions and how they are mapped:
   sphere ``[radius]``, cylinder ``[height, radius]`` (note the order: height first), cone
   ``[height, radius]``. A cone becomes a **conservative cylinder** of the same height and base
   radius (it encloses the cone), logged at warning level. Prisms and planes are rejected.
-- A request's goal is ``goal_constraints[0]``: its ``joint_constraints``, or one position
+- A request's goals are its ``goal_constraints``, alternatives as in MoveIt (a path that reaches
+  any of them solves the request): each is its ``joint_constraints``, or one position
   constraint (regions: box, sphere and cylinder primitives) with at most one orientation
   constraint on the same link and frame, read as a :class:`~prehensile.scene.pose_goal.PoseGoal`
   (``header.frame_id`` empty, ``world`` or a link of the robot). Joint and pose constraints
-  together and mesh or cone regions are refused; MoveIt's alternative goals
-  (``goal_constraints[1:]``) are not read (a warning says so).
+  together (in one goal, or joint and pose goals as alternatives) and mesh or cone regions are
+  refused.
 - The scene's ``allowed_collision_matrix`` is not read: the robot's own SRDF (disabled
   collision pairs) decides which of its link pairs are checked.
 - Meshes (``vertices`` / ``triangles``) become in-memory :class:`~prehensile.model.geometry.Mesh`
@@ -81,6 +82,8 @@ class MotionPlanRequest:
         start: joint name -> value (rad or m) of ``start_state.joint_state``.
         goal: joint name -> value of ``goal_constraints[0].joint_constraints`` (empty for a pose goal).
         pose_goal: ``goal_constraints[0]``'s position (and orientation) constraint, or None.
+        alternatives: the other goals, ``goal_constraints[1:]``, of the first one's kind: joint
+            goals (joint name -> value) or pose goals (:class:`~prehensile.scene.pose_goal.PoseGoal`).
         planner_id: MoveIt planner name ("" if absent).
         allowed_planning_time: s (0 if absent).
         num_planning_attempts: attempts requested (1 if absent).
@@ -91,6 +94,7 @@ class MotionPlanRequest:
     start: Mapping[str, float]
     goal: Mapping[str, float]
     pose_goal: PoseGoal | None = None
+    alternatives: tuple = ()
     planner_id: str = ""
     allowed_planning_time: float = 0.0
     num_planning_attempts: int = 1
@@ -99,6 +103,18 @@ class MotionPlanRequest:
     def __post_init__(self) -> None:
         object.__setattr__(self, "start", MappingProxyType(dict(self.start)))
         object.__setattr__(self, "goal", MappingProxyType(dict(self.goal)))
+        object.__setattr__(self, "alternatives", tuple(
+            goal if isinstance(goal, PoseGoal) else MappingProxyType(dict(goal)) for goal in self.alternatives))
+
+    @property
+    def joint_goals(self) -> tuple[Mapping[str, float], ...]:
+        """Every joint goal: :attr:`goal` and the joint goals among the :attr:`alternatives` (none for pose goals)."""
+        return tuple(goal for goal in (self.goal, *self.alternatives) if goal and not isinstance(goal, PoseGoal))
+
+    @property
+    def pose_goals(self) -> tuple[PoseGoal, ...]:
+        """Every pose goal: :attr:`pose_goal` and the pose goals among the :attr:`alternatives`."""
+        return tuple(goal for goal in (self.pose_goal, *self.alternatives) if isinstance(goal, PoseGoal))
 
     def __iter__(self):
         return iter((self.group, self.start, self.goal))
@@ -112,8 +128,16 @@ class MotionPlanRequest:
         return _configuration(model, self.start, None, f"{self.source}: start_state", strict)
 
     def goal_configuration(self, model: RobotModel, strict: bool = False) -> np.ndarray:
-        """q (dof,): the start configuration with the goal joints set (fingers keep start values)."""
+        """q (dof,): the start configuration with the joints of :attr:`goal` set (fingers keep
+        start values; the start itself for a pose goal)."""
         return _configuration(model, self.goal, self.start_configuration(model, strict), f"{self.source}: goal", strict)
+
+    def goal_configurations(self, model: RobotModel, strict: bool = False) -> np.ndarray:
+        """(k, dof): each of the k :attr:`joint_goals` as :meth:`goal_configuration` makes the
+        first (k = 0 for pose goals)."""
+        start = self.start_configuration(model, strict)
+        return np.array([_configuration(model, goal, start, f"{self.source}: goal_constraints[{k}]", strict)
+                         for k, goal in enumerate(self.joint_goals)]).reshape(-1, model.dof)
 
 
 @dataclass(frozen=True)
@@ -262,37 +286,47 @@ def motion_plan_request_from_dict(data: Any, source: str) -> MotionPlanRequest:
     if start_state.get("attached_collision_objects"):
         raise SceneError(f"{source}: start_state.attached_collision_objects: not supported in a request; attach the "
                          "objects in the scene's robot_state")
-    goal: dict[str, float] = {}
-    pose_goal = None
     constraints = _list(data.get("goal_constraints"), f"{source}: goal_constraints")
-    if len(constraints) > 1:
-        log.warning("%s: goal_constraints: %d alternative goals given; only goal_constraints[0] is read and planned "
-                    "to (a path that reaches it reaches one of the goals)", source, len(constraints))
-    if constraints:
-        first = _mapping(constraints[0], f"{source}: goal_constraints[0]")
-        joints = f"{source}: goal_constraints[0].joint_constraints"
-        for k, jc in enumerate(_list(first.get("joint_constraints"), joints)):
-            where = f"{joints}[{k}]"
-            jc = _mapping(jc, where)
-            if "joint_name" not in jc:
-                raise SceneError(f"{where}: missing 'joint_name'")
-            goal[str(jc["joint_name"])] = _number(jc.get("position"), f"{where}.position")
-        pose_goal = _pose_goal(first, f"{source}: goal_constraints[0]")
-    if not goal and pose_goal is None:
-        raise SceneError(f"{source}: goal_constraints[0] has no joint_constraints and no position_constraints")
-    if goal and pose_goal is not None:
-        raise SceneError(f"{source}: goal_constraints[0]: joint constraints together with position or orientation "
-                         "constraints are not supported; give either")
+    if not constraints:
+        raise SceneError(f"{source}: goal_constraints: no goal given")
+    goals = [_goal(c, f"{source}: goal_constraints[{k}]") for k, c in enumerate(constraints)]
+    kinds = {isinstance(goal, PoseGoal) for goal in goals}
+    if len(kinds) > 1:
+        raise SceneError(f"{source}: goal_constraints: joint goals and pose goals mixed as alternatives are not "
+                         "supported; give alternatives of one kind")
+    first = goals[0]
     return MotionPlanRequest(
         group=str(data.get("group_name", "")),
         start=start,
-        goal=goal,
-        pose_goal=pose_goal,
+        goal={} if isinstance(first, PoseGoal) else first,
+        pose_goal=first if isinstance(first, PoseGoal) else None,
+        alternatives=tuple(goals[1:]),
         planner_id=str(data.get("planner_id", "") or ""),
         allowed_planning_time=_number(data.get("allowed_planning_time", 0.0), f"{source}: allowed_planning_time"),
         num_planning_attempts=_count(data.get("num_planning_attempts", 1) or 1, f"{source}: num_planning_attempts"),
         source=source,
     )
+
+
+def _goal(constraints: Any, where: str) -> dict[str, float] | PoseGoal:
+    """One goal of ``goal_constraints``: its joint constraints (joint name -> position) or its
+    pose goal (:func:`_pose_goal`)."""
+    constraints = _mapping(constraints, where)
+    goal: dict[str, float] = {}
+    joints = f"{where}.joint_constraints"
+    for k, jc in enumerate(_list(constraints.get("joint_constraints"), joints)):
+        here = f"{joints}[{k}]"
+        jc = _mapping(jc, here)
+        if "joint_name" not in jc:
+            raise SceneError(f"{here}: missing 'joint_name'")
+        goal[str(jc["joint_name"])] = _number(jc.get("position"), f"{here}.position")
+    pose_goal = _pose_goal(constraints, where)
+    if not goal and pose_goal is None:
+        raise SceneError(f"{where} has no joint_constraints and no position_constraints")
+    if goal and pose_goal is not None:
+        raise SceneError(f"{where}: joint constraints together with position or orientation constraints are not "
+                         "supported; give either")
+    return goal or pose_goal
 
 
 def _pose_goal(constraints: Mapping, where: str) -> PoseGoal | None:
