@@ -289,6 +289,43 @@ def test_pose_goals_of_moveit_requests_are_met_by_the_pose_planners(tmp_path):
         " ".join(result.output.split())
 
 
+def test_alternative_pose_goals_are_any_of_them(tmp_path):
+    """Each request's pose goal behind an alternative 3 m away (no IK solution, and farther from
+    the tool): both pose planners must end within the real one; alternatives on another point
+    of the hand are refused, naming the request."""
+    import yaml
+
+    folder = tmp_path / "problems" / "shelf_armar3"
+    _write_armar_problems(folder)
+    _pose_goal_requests(folder)
+    for path in sorted(folder.glob("request*.yaml")):
+        request = yaml.safe_load(path.read_text())
+        (goal,) = request["goal_constraints"]
+        far = yaml.safe_load(yaml.safe_dump(goal))
+        pose = far["position_constraints"][0]["constraint_region"]["primitive_poses"][0]
+        pose["position"] = (np.asarray(pose["position"]) + [3.0, 0.0, 0.0]).tolist()
+        request["goal_constraints"] = [far, goal]
+        path.write_text(yaml.safe_dump(request))
+    out = tmp_path / "report.json"
+    for planner, limit in (("ik_rrt", "0"), ("jplus_rrt", "1")):
+        result = runner.invoke(app, ["bench", "mbm", str(tmp_path / "problems"), "--robot", "armar3", "--planner",
+                                     planner, "--budget", "5", "--limit", limit, "--json", str(out)])
+        assert result.exit_code == 0, result.output
+        report = json.loads(out.read_text())
+        runs = [run["ours"] for run in report["runs"]]
+        assert report["overall"]["solved"] == len(runs) and all(run["goal_satisfied"] for run in runs), planner
+        assert all(run["goal_error_m"] <= np.sqrt(3) * 1e-2 for run in runs)  # from the near goal's centre
+    path = folder / "request0002.yaml"
+    request = yaml.safe_load(path.read_text())
+    request["goal_constraints"][0]["position_constraints"][0]["target_point_offset"] = [0.0, 0.0, 0.0]
+    path.write_text(yaml.safe_dump(request))
+    result = runner.invoke(app, ["bench", "mbm", str(tmp_path / "problems"), "--robot", "armar3", "--planner",
+                                 "ik_rrt"])
+    assert result.exit_code == 2
+    assert ("request0002.yaml: goal_constraints[1]: constrains another point than goal_constraints[0]"
+            in " ".join(result.output.split()))
+
+
 def test_ik_rrt_aims_anywhere_in_a_pose_goal(tmp_path):
     """IK-RRT samples the whole goal region: request 1's sphere grown to 2 m and its tolerances
     to 3 rad hold the start, which is then the goal (the path stays there); request 2's box

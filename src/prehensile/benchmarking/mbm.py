@@ -18,7 +18,10 @@ nearest to the start's: a start that meets the goal with its margin to spare,
 :data:`~prehensile.planning.to_pose.REGION_MARGINS`, is a goal), J+-RRT steps toward the pose
 of the regions nearest to the tool (:func:`~prehensile.planning.to_pose.plan_to_pose`). Every
 path's end is checked against the request's constraints (``goal_satisfied``): a path that
-ends outside them counts as unsolved.
+ends outside them counts as unsolved. A request's alternative goals (MoveIt's
+``goal_constraints``: joint goals, or pose goals on one point of the tool) are one goal set:
+RRT-Connect and OMPL plan to any of the configurations, the pose planners to any of the poses
+or regions, and a path that ends at any of them solves the request.
 
 Measured per problem and planner:
 
@@ -215,14 +218,16 @@ class PreparedProblem:
         robot, T_world_base = (scene.robots[0].name, scene.robots[0].T_world_base) if scene.robots else (None, None)
         self.tip = goal_tip(model, problem, settings.planner)
         # the pose planners' goal: the world pose (4, 4) or position (3,) of the tool frame T_tip_tcp on
-        # the tip link; for a joint goal the tip link's pose at the goal configuration
-        self.T_tip_tcp = self.T_world_frame = self.target = None
-        pose_goal = problem.request.pose_goal
-        if pose_goal is not None:
-            self.T_world_frame, self.T_tip_tcp = pose_goal_frames(model, problem, self.tip, self.q_start,
-                                                                  T_world_base)
-            self.target, self.q_goal = pose_goal.target(self.T_world_frame), None
-        elif self.tip is not None:  # (4, 4), or (k, 4, 4) for k alternative goals
+        # the tip link (k of them, (k, 4, 4) or (k, 3), for k alternative goals); for a joint goal the tip
+        # link's pose at the goal configuration. T_world_frames: the pose goals' frames.
+        self.T_tip_tcp, self.T_world_frames, self.target = None, (), None
+        pose_goals = problem.request.pose_goals
+        if pose_goals:
+            self.T_world_frames, self.T_tip_tcp = pose_goal_frames(model, problem, self.tip, self.q_start,
+                                                                   T_world_base)
+            targets = [goal.target(T) for goal, T in zip(pose_goals, self.T_world_frames)]
+            self.target, self.q_goal = targets[0] if len(targets) == 1 else np.array(targets), None
+        elif self.tip is not None:
             self.target = np.array([link_pose(model, q, self.tip, T_world_base=T_world_base)
                                     for q in np.reshape(self.q_goal, (-1, model.dof))]).reshape(
                 np.shape(self.q_goal)[:-1] + (4, 4))
@@ -243,14 +248,15 @@ def goal_tip(model: RobotModel, problem: MBMProblem, planner: str) -> str | None
             ``rrt_connect``, or one without orientation for ``jplus_rrt``.
     """
     request = problem.request
-    if request.pose_goal is not None and planner not in POSE_PLANNERS:
+    if request.pose_goals and planner not in POSE_PLANNERS:
         raise PrehensileError(f"{request.source}: goal_constraints[0]: a pose goal (position and orientation "
                               f"constraints) needs a pose planner: {' or '.join(POSE_PLANNERS)}")
     if planner not in POSE_PLANNERS:
         return None
-    if request.pose_goal is not None and request.pose_goal.orientation is None and planner == "jplus_rrt":
-        raise PrehensileError(f"{request.source}: goal_constraints[0]: jplus_rrt steps toward a full pose, and the "
-                              "goal has no orientation constraint; use ik_rrt")
+    for k, goal in enumerate(request.pose_goals):
+        if goal.orientation is None and planner == "jplus_rrt":
+            raise PrehensileError(f"{request.source}: goal_constraints[{k}]: jplus_rrt steps toward a full pose, and "
+                                  "the goal has no orientation constraint; use ik_rrt")
     group = request.group
     if group not in model.chains:
         raise PrehensileError(f"{request.source}: group: {planner} plans to the pose of a chain's tip, and "
@@ -260,30 +266,42 @@ def goal_tip(model: RobotModel, problem: MBMProblem, planner: str) -> str | None
 
 
 def pose_goal_frames(model: RobotModel, problem: MBMProblem, tip: str, q_start: np.ndarray,
-                     T_world_base: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
-    """(T_world_frame, T_tip_tcp) (4, 4) of a request's pose goal: the pose of its frame with
-    the robot at q_start (dof,), and its constrained point's frame on the group's tip link.
+                     T_world_base: np.ndarray | None) -> tuple[tuple[np.ndarray, ...], np.ndarray]:
+    """(T_world_frame (4, 4) of each pose goal of a request, T_tip_tcp (4, 4)): the pose of
+    the goal's frame with the robot at q_start (dof,), and the constrained point's frame on the
+    group's tip link, the same for every goal.
 
     Raises:
         PrehensileError: a frame or link the robot does not have, a frame that the group's
-            joints move (MoveIt would place it where each checked state puts it), or a
-            constrained link that they move relative to the group's tip.
+            joints move (MoveIt would place it where each checked state puts it), a
+            constrained link that they move relative to the group's tip, alternative goals
+            on different points or some with an orientation constraint and some without.
     """
-    goal, where = problem.request.pose_goal, f"{problem.request.source}: goal_constraints[0]"
-    for name, what in ((goal.frame, "header.frame_id"), (goal.link, "link_name")):
-        if name and name not in model.link_names:
-            raise PrehensileError(f"{where}: {what} '{name}' is not {'the world or ' * (what != 'link_name')}a link "
-                                  f"of robot '{model.name}'")
-    planned = set(model.chain_q_indices(problem.request.group).tolist())
-    if goal.frame and model.variables_to_root(goal.frame) & planned:
-        raise PrehensileError(f"{where}: header.frame_id '{goal.frame}' is moved by group '{problem.request.group}'; "
-                              "give the constraints in the world or in a link the group does not move")
-    T_tip_tcp = region_tool_frame(model, tip, goal, q_start, planned)
-    if T_tip_tcp is None:
-        raise PrehensileError(f"{where}: link_name '{goal.link}' moves relative to the tip '{tip}' of group "
-                              f"'{problem.request.group}'; constrain the tip or a link fixed to it")
-    T_world_frame = link_pose(model, q_start, goal.frame, T_world_base=T_world_base) if goal.frame else np.eye(4)
-    return T_world_frame, T_tip_tcp
+    request = problem.request
+    planned = set(model.chain_q_indices(request.group).tolist())
+    frames, tools = [], []
+    for k, goal in enumerate(request.pose_goals):
+        where = f"{request.source}: goal_constraints[{k}]"
+        for name, what in ((goal.frame, "header.frame_id"), (goal.link, "link_name")):
+            if name and name not in model.link_names:
+                raise PrehensileError(f"{where}: {what} '{name}' is not {'the world or ' * (what != 'link_name')}a "
+                                      f"link of robot '{model.name}'")
+        if goal.frame and model.variables_to_root(goal.frame) & planned:
+            raise PrehensileError(f"{where}: header.frame_id '{goal.frame}' is moved by group '{request.group}'; "
+                                  "give the constraints in the world or in a link the group does not move")
+        T_tip_tcp = region_tool_frame(model, tip, goal, q_start, planned)
+        if T_tip_tcp is None:
+            raise PrehensileError(f"{where}: link_name '{goal.link}' moves relative to the tip '{tip}' of group "
+                                  f"'{request.group}'; constrain the tip or a link fixed to it")
+        if tools and not np.allclose(T_tip_tcp, tools[0], atol=1e-9):
+            raise PrehensileError(f"{where}: constrains another point than goal_constraints[0] (links "
+                                  f"'{goal.link}', '{request.pose_goals[0].link}'); give alternatives on one point")
+        if (goal.orientation is None) != (request.pose_goals[0].orientation is None):
+            raise PrehensileError(f"{where}: constrains the orientation where goal_constraints[0] does not, or the "
+                                  "other way round; give alternatives of one kind")
+        frames.append(link_pose(model, q_start, goal.frame, T_world_base=T_world_base) if goal.frame else np.eye(4))
+        tools.append(T_tip_tcp)
+    return tuple(frames), tools[0]
 
 
 def _unplanned_outside(model: RobotModel, q_start: np.ndarray, joints: Sequence[str]) -> np.ndarray:
@@ -320,7 +338,7 @@ def check_problems(model: RobotModel, problems: Sequence[MBMProblem], planner: s
         tip = goal_tip(model, problem, planner)
         problem.request.goal_configurations(model)  # and the start they build on
         q_start = problem.request.start_configuration(model)
-        if problem.request.pose_goal is not None:
+        if problem.request.pose_goals:
             robots = problem.scene.robots
             pose_goal_frames(model, problem, tip, q_start, robots[0].T_world_base if robots else None)
         outside = _unplanned_outside(model, q_start, joints)
@@ -355,9 +373,9 @@ def _plan(prepared: PreparedProblem, settings: MBMSettings, rng: np.random.Gener
     if prepared.target is None:
         return rrt_connect(prepared.ctx, prepared.q_start, prepared.q_goal, settings=_rrt_settings(settings), rng=rng)
     request = prepared.problem.request
-    if request.pose_goal is not None:
+    if request.pose_goals:
         return plan_to_pose(prepared.ctx, prepared.q_start, None, request.group, settings.planner,
-                            settings.time_budget_s, rng, region=(request.pose_goal, prepared.T_world_frame))
+                            settings.time_budget_s, rng, region=list(zip(request.pose_goals, prepared.T_world_frames)))
     return plan_to_pose(prepared.ctx, prepared.q_start, prepared.target, request.group, settings.planner,
                         settings.time_budget_s, rng)
 
@@ -416,20 +434,23 @@ def _ends_as_asked(prepared: PreparedProblem, path: np.ndarray) -> bool:
 
 
 def _goal_errors(prepared: PreparedProblem, q: np.ndarray) -> dict:
-    """How far the tool frame at q (dof,) is from a pose planner's target (m, rad; None: a
-    position target), and whether q meets the request's pose goal (None: a joint goal)."""
+    """How far the tool frame at q (dof,) is from a pose planner's target, the nearest of
+    alternative ones (m, rad; None: a position target), and whether q meets one of the
+    request's pose goals (None: joint goals)."""
     model, target, T_world_base = prepared.ctx.model, prepared.target, prepared.ctx.T_world_base
     reached = link_pose(model, q, prepared.tip, prepared.T_tip_tcp, T_world_base=T_world_base)
-    if target.shape == (3,):
-        errors = {"goal_error_m": float(np.linalg.norm(reached[:3, 3] - target)), "goal_error_rad": None}
-    else:  # the nearest of alternative targets (k, 4, 4)
+    if target.shape[-1] == 3:
+        errors = {"goal_error_m": float(np.min(np.linalg.norm(reached[:3, 3] - target.reshape(-1, 3), axis=1))),
+                  "goal_error_rad": None}
+    else:
         target = min(target.reshape(-1, 4, 4), key=lambda T: np.linalg.norm(reached[:3, 3] - T[:3, 3]))
         errors = {"goal_error_m": float(np.linalg.norm(reached[:3, 3] - target[:3, 3])),
                   "goal_error_rad": float(np.linalg.norm(rotation_error(target[:3, :3], reached[:3, :3])))}
-    pose_goal = prepared.problem.request.pose_goal
-    if pose_goal is not None:
-        T_world_link = link_pose(model, q, pose_goal.link, T_world_base=T_world_base)
-        errors["goal_satisfied"] = pose_goal.satisfied(prepared.T_world_frame, T_world_link)
+    request = prepared.problem.request
+    if request.pose_goals:
+        errors["goal_satisfied"] = any(
+            goal.satisfied(T_world_frame, link_pose(model, q, goal.link, T_world_base=T_world_base))
+            for goal, T_world_frame in zip(request.pose_goals, prepared.T_world_frames))
     return errors
 
 

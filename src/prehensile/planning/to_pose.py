@@ -3,8 +3,6 @@ IK-RRT or J+-RRT."""
 
 from __future__ import annotations
 
-from functools import partial
-
 import numpy as np
 
 from prehensile.errors import PrehensileError
@@ -14,6 +12,7 @@ from prehensile.planning.context import PlanningContext
 from prehensile.planning.ik_rrt import IKRRTSettings, grasp_sampler, ik_rrt
 from prehensile.planning.jplus_rrt import JPlusRRTSettings, jplus_rrt
 from prehensile.planning.result import PlanResult
+from prehensile.scene.pose_goal import PoseGoal
 from prehensile.spatial.transforms import invert
 
 POSE_PLANNERS = ("ik_rrt", "jplus_rrt")
@@ -44,11 +43,13 @@ def plan_to_pose(ctx: PlanningContext, q_start: np.ndarray, target: np.ndarray |
         rng: random source or seed.
         T_tip_tcp: the tool frame on the tip link; None with a ``region``.
         region: (:class:`~prehensile.scene.PoseGoal`, T_world_frame (4, 4) the pose of its
-            frame): the goal's constrained point frame is the tool (its link must be the
-            chain's tip or fixed to it). IK-RRT aims its first IK sample at the region's pose
-            nearest to the start, later ones at random poses of the region; J+-RRT steps
-            toward the region's pose nearest to the tool. Both keep :data:`REGION_MARGINS`
-            inside its bounds (a region smaller than that is aimed at its centre).
+            frame), or a list of such pairs, alternatives (MoveIt's goal_constraints) that
+            constrain the same point and all or none the orientation: the goal's constrained
+            point frame is the tool (its link must be the chain's tip or fixed to it). IK-RRT
+            aims its first IK sample at the regions' pose nearest to the start's tool, later
+            ones at random poses of a random goal; J+-RRT steps toward the regions' pose
+            nearest to the tool (in position). Both keep :data:`REGION_MARGINS` inside the
+            bounds (a region smaller than that is aimed at its centre).
 
     Raises:
         PrehensileError: an unknown planner, a malformed target, a position target (or a
@@ -61,7 +62,8 @@ def plan_to_pose(ctx: PlanningContext, q_start: np.ndarray, target: np.ndarray |
     if region is not None:
         if target is not None or T_tip_tcp is not None:
             raise PrehensileError(f"{planner}: a region is the goal: give target=None and T_tip_tcp=None with it")
-        target, more, T_tip_tcp = _region_goal(ctx, q_start, chain, planner, *region)
+        target, more, T_tip_tcp = _region_goal(ctx, q_start, chain, planner,
+                                               [region] if isinstance(region[0], PoseGoal) else list(region))
     if planner == "jplus_rrt":
         if not callable(target):
             target = _checked_target(target, planner)
@@ -98,22 +100,46 @@ def _checked_target(target, planner: str) -> np.ndarray:
                           f"them, (k, 4, 4) or (k, 3), got {target.shape}")
 
 
-def _region_goal(ctx: PlanningContext, q_start: np.ndarray, chain: str, planner: str, goal, T_world_frame: np.ndarray):
-    """(target, more_targets, T_tip_tcp) of a region goal for ``planner`` (:func:`plan_to_pose`):
-    for IK-RRT the region's target nearest to the start and a function drawing random ones, for
-    J+-RRT a function from a tool pose to the region's pose nearest to it; the tool frame is the
-    goal's point frame on the chain's tip link (placed as ``q_start`` (dof,) puts it)."""
+def _region_goal(ctx: PlanningContext, q_start: np.ndarray, chain: str, planner: str, regions: list):
+    """(target, more_targets, T_tip_tcp) of goal regions, alternatives ``regions`` [(PoseGoal,
+    T_world_frame (4, 4))], for ``planner`` (:func:`plan_to_pose`): for IK-RRT the target
+    nearest to the start's tool and a function drawing random ones, for J+-RRT a function from
+    a tool pose to the nearest target; the tool frame is the goals' point frame on the chain's
+    tip link (placed as ``q_start`` (dof,) puts it)."""
     model, margin, tip = ctx.model, REGION_MARGINS[planner], ctx.model.chain(chain).tip_link
-    T_tip_tcp = region_tool_frame(model, tip, goal, q_start, set(ctx.space.indices.tolist()))
-    if T_tip_tcp is None:
-        raise PrehensileError(f"{planner}: the goal's link '{goal.link}' moves relative to the tip '{tip}' of "
-                              f"chain '{chain}'; constrain the tip or a link fixed to it")
+    planned = set(ctx.space.indices.tolist())
+    frames = []
+    for goal, _ in regions:
+        T_tip_tcp = region_tool_frame(model, tip, goal, q_start, planned)
+        if T_tip_tcp is None:
+            raise PrehensileError(f"{planner}: the goal's link '{goal.link}' moves relative to the tip '{tip}' of "
+                                  f"chain '{chain}'; constrain the tip or a link fixed to it")
+        frames.append(T_tip_tcp)
+    if any(not np.allclose(T, frames[0], atol=1e-9) for T in frames[1:]):
+        raise PrehensileError(f"{planner}: alternative goals constrain different points of links "
+                              f"{', '.join(sorted({goal.link for goal, _ in regions}))}; give goals on one point")
+    if len({goal.orientation is None for goal, _ in regions}) > 1:
+        raise PrehensileError(f"{planner}: some alternative goals constrain the orientation and some do not; give "
+                              "goals of one kind")
     if planner == "jplus_rrt":
-        if goal.orientation is None:
-            raise PrehensileError(f"jplus_rrt steps toward a full pose, and the goal of link '{goal.link}' has no "
-                                  "orientation constraint; use ik_rrt")
-        T_point_link = invert(goal.T_link_point)
-        return (lambda T_world_tool: goal.closest(T_world_frame, T_world_tool @ T_point_link, margin)), None, T_tip_tcp
-    T_world_link = link_pose(model, q_start, goal.link, T_world_base=ctx.T_world_base)
-    sample = partial(goal.sample, T_world_frame=T_world_frame, margin=margin)
-    return goal.closest(T_world_frame, T_world_link, margin), lambda rng: np.asarray(sample(rng))[None], T_tip_tcp
+        if regions[0][0].orientation is None:
+            raise PrehensileError(f"jplus_rrt steps toward a full pose, and the goal of link '{regions[0][0].link}' "
+                                  "has no orientation constraint; use ik_rrt")
+
+        def nearest(T_world_tool: np.ndarray) -> np.ndarray:
+            targets = [goal.closest(T_world_frame, T_world_tool @ invert(goal.T_link_point), margin)
+                       for goal, T_world_frame in regions]
+            return min(targets, key=lambda T: np.linalg.norm(T[:3, 3] - T_world_tool[:3, 3]))
+
+        return nearest, None, frames[0]
+    tool = (link_pose(model, q_start, tip, T_world_base=ctx.T_world_base) @ frames[0])[:3, 3]
+    firsts = [np.asarray(goal.closest(T_world_frame, link_pose(model, q_start, goal.link,
+                                                               T_world_base=ctx.T_world_base), margin))
+              for goal, T_world_frame in regions]  # poses (4, 4) or positions (3,)
+    first = min(firsts, key=lambda target: np.linalg.norm((target[:3, 3] if target.ndim == 2 else target) - tool))
+
+    def more(rng: np.random.Generator) -> np.ndarray:
+        goal, T_world_frame = regions[rng.integers(len(regions))]
+        return np.asarray(goal.sample(rng, T_world_frame=T_world_frame, margin=margin))[None]
+
+    return first, more, frames[0]
