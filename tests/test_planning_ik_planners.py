@@ -170,6 +170,8 @@ def test_a_sampler_whose_q_ref_moves_unplanned_joints_is_refused_up_front(panda_
         ik_rrt(ctx, q0, grasp_sampler(ctx, solver, goals, q_ref), rng=0)
     with pytest.raises(PrehensileError, match="multi_eef_rrt: the sampler of 'left' is a function, not a GoalSampler"):
         multi_eef_rrt(ctx, q0, {"left": lambda rng, call, attempts, budget: (None, {})})
+    with pytest.raises(PrehensileError, match="ik_rrt: the sampler is a ndarray, not a GoalSampler"):
+        ik_rrt(ctx, q0, goals)
 
 
 def test_a_sampler_takes_q_ref_as_a_list(panda_scene):
@@ -274,7 +276,7 @@ def test_unreachable_goals_are_statuses_within_budget(panda_scene):
     result = ik_rrt(ctx, q0, grasp_sampler(ctx, solver, far[None], q0), IKRRTSettings(time_budget_s=0.2), rng=0)
     assert result.status is PlanStatus.NO_GOAL_CONFIGURATION and result.stats.plan_time_s < 0.4
     assert result.blamed_ends == ()  # IK's failure, not an end's
-    assert result.info["reason"].startswith("the IK found no valid goal configuration in ")
+    assert result.info["reason"].startswith("no valid goal configuration: IK failed on all ")
     result = jplus_rrt(ctx, q0, far[None], settings=JPlusRRTSettings(time_budget_s=0.2), rng=0)
     assert result.status is PlanStatus.TIMEOUT and result.stats.plan_time_s < 0.4
     colliding = q0.copy()

@@ -346,7 +346,8 @@ def test_search_resumes_its_trees_and_takes_goals_added_later(arm):
     ctx = PlanningContext(model, [wall], spheres=spheres)
     start = np.array([0.8, 0.0, 0.0])
     search = RRTConnectSearch(ctx, start, RRTConnectSettings(escape=False), np.random.default_rng(3))
-    assert search.solve(0.1).status is PlanStatus.INVALID_GOAL  # no goal yet
+    none = search.solve(0.1)  # no goal yet
+    assert none.status is PlanStatus.INVALID_GOAL and none.info["reason"] == "no goal given: call add_goals first"
     search.add_goals(np.array([-0.8, 0.0, 0.0]))  # behind the wall
     first = search.solve(0.05)
     second = search.solve(0.05)
@@ -749,6 +750,16 @@ def test_ball_joint_weights_bound_the_speed_of_every_ball(axes):
                 moved = np.linalg.norm((points @ after[link][:3, :3].T + after[link][:3, 3])
                                        - (points @ before[link][:3, :3].T + before[link][:3, 3]), axis=1)
                 assert moved.max() / 1e-7 <= W[s, k] * (1 + 1e-5) + 1e-9
+
+
+def test_a_space_names_its_joints_when_given_the_wrong_ones():
+    model = robots.load("panda")
+    with pytest.raises(PrehensileError, match=r"'panda_joint1' is a joint, not a chain .* as a list: \['panda_joint1'\]"):
+        PlanningContext(model, [], joints="panda_joint1")
+    space = PlanningContext(model, [], joints=["panda_joint1", "panda_joint2"]).space
+    assert np.array_equal(space.full([0.1, 0.2])[:3], [0.1, 0.2, model.neutral_configuration()[2]])
+    with pytest.raises(PrehensileError, match=r"full: expected the 2 planned joints \(panda_joint1, panda_joint2\)"):
+        space.full(np.zeros(8))
 
 
 def test_pair_weights_bound_how_fast_every_link_pair_can_close_in():

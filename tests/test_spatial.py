@@ -43,6 +43,10 @@ def test_make_pose_takes_rpy_instead_of_a_rotation():
         make_pose(np.eye(3), rpy=[0.0, 0.0, 0.1])
     with pytest.raises(PrehensileError, match=r"make_pose: rpy must be \(\.\.\., 3\).*got shape \(2,\)"):
         make_pose(rpy=[0.1, 0.2])
+    with pytest.raises(PrehensileError, match=r"position \(\.\.\., 3\) \(m\), got shapes \(3, 3\) and \(2,\)"):
+        make_pose(position=[1.0, 2.0])
+    with pytest.raises(PrehensileError, match=r"batch shapes of rotation \(2, 3, 3\) and position \(3, 3\)"):
+        make_pose(np.stack([np.eye(3)] * 2), np.zeros((3, 3)))
 
 
 def test_quaternion_and_axis_angle_match_scipy():

@@ -115,7 +115,8 @@ class ChainSolver:
         if chain is not None:
             spec = model.chain(chain)
         elif base is not None and tip is not None:
-            spec = resolve_chain(model, Chain(f"{base}->{tip}", base, tip, ()))
+            spec = resolve_chain(model, Chain(f"{base}->{tip}", base, tip, ()), f"ChainSolver: base '{base}', tip "
+                                 f"'{tip}' of robot '{model.name}'")
         else:
             raise PrehensileError("ChainSolver: give a chain name or both base and tip links")
         self.model, self.chain, self.settings = model, spec, settings

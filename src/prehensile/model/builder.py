@@ -232,7 +232,7 @@ def resolve_chain(model: RobotModel, chain: Chain, where: str | None = None) -> 
     where = where or f"{model.source}: chain '{chain.name}'"
     for link in (chain.base_link, chain.tip_link):
         if link not in model.link_names:
-            raise ModelError(f"{where} names unknown link '{link}'")
+            raise ModelError(f"{where} names unknown link '{link}'; links: {', '.join(model.link_names)}")
     path = model.path_to_root(chain.tip_link)
     base = model.link_index(chain.base_link)
     if base not in path:

@@ -376,7 +376,7 @@ class PlanningContext:
     def is_valid(self, q: np.ndarray) -> np.ndarray:
         """(*batch,) bool: q (*batch, dof) within the joint limits and free (sphere model; what
         it cannot see on the exact geometry, :meth:`exact_screen`)."""
-        q = self.model.check_configuration(q)
+        q = self.model.check_configuration(q, "PlanningContext.is_valid: q")
         return self.model.within_limits(q) & self.spheres.is_free(q) & self.exact_screen(q)
 
     def is_usable_end(self, q: np.ndarray) -> bool:

@@ -93,6 +93,10 @@ class ConfigurationSpace:
         if joints is None:
             indices = np.arange(model.dof)
         elif isinstance(joints, str):
+            if joints not in model.chains and joints in model.joint_names:
+                raise PrehensileError(f"ConfigurationSpace: '{joints}' is a joint, not a chain of robot "
+                                      f"'{model.name}' (chains: {', '.join(model.chains) or '(none)'}); give joint "
+                                      f"names as a list: ['{joints}']")
             indices = model.chain_q_indices(joints)
         else:
             indices = np.array([model.joint_index(j) for j in joints], dtype=np.int64)
@@ -131,6 +135,9 @@ class ConfigurationSpace:
     def full(self, qa: np.ndarray) -> np.ndarray:
         """(*batch, dof) full configurations: ``q_ref`` with the planned joints set to qa (*batch, n)."""
         qa = np.asarray(qa, dtype=float)
+        if qa.shape[-1:] != (self.n,):
+            raise PrehensileError(f"ConfigurationSpace.full: expected the {self.n} planned joints "
+                                  f"({', '.join(self.joint_names)}) as (..., {self.n}), got shape {qa.shape}")
         out = np.broadcast_to(self.q_ref, qa.shape[:-1] + (self.model.dof,)).copy()
         out[..., self.indices] = qa
         return out

@@ -214,9 +214,9 @@ def multi_eef_rrt(ctx: PlanningContext | dict[str, PlanningContext], q_start: np
     for name, sampler in samplers.items():  # a start only the balls reject is left to the search's certified escape
         context = contexts[name]
         if not isinstance(sampler, GoalSampler):
-            raise PrehensileError(f"multi_eef_rrt: the sampler{f' of {name!r}' if name else ''} is a "
-                                  f"{type(sampler).__name__}, not a GoalSampler (grasp_sampler, dual_arm_sampler, "
-                                  "regrasp_sampler or GoalSampler(who, q_ref, draw))")
+            who = f"multi_eef_rrt: the sampler of {name!r}" if name else "ik_rrt: the sampler"
+            raise PrehensileError(f"{who} is a {type(sampler).__name__}, not a GoalSampler (grasp_sampler, "
+                                  "dual_arm_sampler, regrasp_sampler or GoalSampler(who, q_ref, draw))")
         sampler.check_start(context, q_start)
         if not context.is_usable_end(q_start):
             return context.explain(PlanResult(PlanStatus.INVALID_START, np.zeros((0, len(q_start))), PlanStats(),
@@ -234,8 +234,9 @@ def multi_eef_rrt(ctx: PlanningContext | dict[str, PlanningContext], q_start: np
     else:
         samples = sum(search.calls for search in searches.values())
         result = PlanResult(PlanStatus.NO_GOAL_CONFIGURATION, np.zeros((0, len(q_start))), stats, info={
-            "reason": f"the IK found no valid goal configuration in {samples} samples of {settings.ik_attempts} "
-                      "attempts: the targets may be out of reach, or every solution found collides"})
+            "reason": f"no valid goal configuration: IK failed on all {samples} goal samples (up to "
+                      f"{settings.ik_attempts} IK attempts each); the targets may be out of reach, or every "
+                      "solution found collides"})
     return contexts[next(iter(samplers))].explain(result, q_start)
 
 

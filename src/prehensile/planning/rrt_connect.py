@@ -529,7 +529,7 @@ class RRTConnectSearch:
         found after ``deadline`` (s, :func:`~prehensile.clock.clock`)."""
         started = clock()
         model, space = self.ctx.model, self.ctx.space
-        goals = model.check_configuration(q_goals, "q_goal")
+        goals = model.check_configuration(q_goals, "rrt_connect: q_goal")
         if goals.ndim > 2 or goals.shape[-1] != model.dof:
             raise PrehensileError(f"rrt_connect: q_goal must be ({model.dof},) or (k, {model.dof}), got {goals.shape}")
         goals = goals.reshape(-1, model.dof).copy()  # its unplanned joints are set below
@@ -665,6 +665,8 @@ class RRTConnectSearch:
         totals = dict(iterations=0, nodes=0, collision_checks=0, plan_time_s=0.0, simplify_time_s=0.0,
                       certify_time_s=0.0)
         self._checks[0] = 0
+        if not self.given:
+            return self._no_path(PlanStatus.INVALID_GOAL, totals, {"reason": "no goal given: call add_goals first"})
         report: CertifyReport | None = None
         for attempt in range(settings.certify_retries + 1):
             begun = t0 if attempt == 0 else clock()

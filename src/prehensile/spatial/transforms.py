@@ -88,7 +88,7 @@ def make_pose(rotation: np.ndarray | None = None, position: np.ndarray | None = 
             (:func:`rpy_to_matrix`: ``R = Rz(yaw) @ Ry(pitch) @ Rx(roll)``, as URDF).
 
     Raises:
-        PrehensileError: both ``rotation`` and ``rpy`` given, or ``rpy`` not of shape (..., 3).
+        PrehensileError: both ``rotation`` and ``rpy`` given, or an input of another shape.
     """
     if rpy is not None:
         if rotation is not None:
@@ -99,7 +99,14 @@ def make_pose(rotation: np.ndarray | None = None, position: np.ndarray | None = 
         rotation = rpy_to_matrix(rpy)
     rotation = np.eye(3) if rotation is None else np.asarray(rotation, dtype=float)
     position = np.zeros(3) if position is None else np.asarray(position, dtype=float)
-    batch = np.broadcast_shapes(rotation.shape[:-2], position.shape[:-1])
+    if rotation.shape[-2:] != (3, 3) or position.shape[-1:] != (3,):
+        raise PrehensileError(f"make_pose: rotation must be (..., 3, 3) and position (..., 3) (m), got shapes "
+                              f"{rotation.shape} and {position.shape}")
+    try:
+        batch = np.broadcast_shapes(rotation.shape[:-2], position.shape[:-1])
+    except ValueError:
+        raise PrehensileError(f"make_pose: the batch shapes of rotation {rotation.shape} and position "
+                              f"{position.shape} do not broadcast") from None
     T = np.zeros(batch + (4, 4))
     T[..., :3, :3] = rotation
     T[..., :3, 3] = position
