@@ -574,7 +574,7 @@ def run_mbm(problems_path: str | Path, model: RobotModel, spheres: tuple[SphereM
 
 
 def warm_up(model: RobotModel, spheres: tuple[SphereModel, SphereModel | None], problem: MBMProblem,
-             settings: MBMSettings) -> None:
+            settings: MBMSettings) -> None:
     """Compile (or load from numba's cache) every kernel on one problem before timing, the
     clearance of certified escapes too (few problems need one)."""
     start = time.perf_counter()

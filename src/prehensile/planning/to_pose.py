@@ -126,9 +126,11 @@ def _region_goal(ctx: PlanningContext, q_start: np.ndarray, chain: str, planner:
             raise PrehensileError(f"jplus_rrt steps toward a full pose, and the goal of link '{regions[0][0].link}' "
                                   "has no orientation constraint; use ik_rrt")
 
+        T_point_links = [invert(goal.T_link_point) for goal, _ in regions]
+
         def nearest(T_world_tool: np.ndarray) -> np.ndarray:
-            targets = [goal.closest(T_world_frame, T_world_tool @ invert(goal.T_link_point), margin)
-                       for goal, T_world_frame in regions]
+            targets = [goal.closest(T_world_frame, T_world_tool @ T_point_link, margin)
+                       for (goal, T_world_frame), T_point_link in zip(regions, T_point_links)]
             return min(targets, key=lambda T: np.linalg.norm(T[:3, 3] - T_world_tool[:3, 3]))
 
         return nearest, None, frames[0]
