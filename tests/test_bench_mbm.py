@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import importlib.util
-
 import json
 import tarfile
 from pathlib import Path
@@ -134,6 +133,15 @@ def _write_armar_problems(folder: Path) -> None:
         (folder / f"request{k:04d}.yaml").write_text(yaml.safe_dump(request))
 
 
+def _bench_armar(tmp_path: Path, *options: str) -> tuple:
+    """``bench mbm`` on the ARMAR-III problems in tmp_path / "problems" with ``options``; (CLI result, report)."""
+    out = tmp_path / "report.json"
+    result = runner.invoke(app, ["bench", "mbm", str(tmp_path / "problems"), "--robot", "armar3", "--json", str(out),
+                                 *options])
+    assert result.exit_code == 0, result.output
+    return result, json.loads(out.read_text())
+
+
 def test_bench_mbm_another_robot_with_generated_balls(tmp_path):
     """Any robot with an SRDF group: ARMAR-III's right arm, balls generated from its meshes."""
     _write_armar_problems(tmp_path / "problems" / "shelf_armar3")
@@ -188,11 +196,7 @@ def test_alternative_joint_goals_are_a_goal_set(tmp_path, planner):
         request["goal_constraints"] = [beyond, goal]
         path.write_text(yaml.safe_dump(request))
     ompl = ["--compare-ompl"] if planner == "rrt_connect" and importlib.util.find_spec("ompl") else []
-    out = tmp_path / "report.json"
-    result = runner.invoke(app, ["bench", "mbm", str(tmp_path / "problems"), "--robot", "armar3", "--planner", planner,
-                                 "--budget", "5", "--json", str(out), *ompl])
-    assert result.exit_code == 0, result.output
-    report = json.loads(out.read_text())
+    _, report = _bench_armar(tmp_path, "--planner", planner, "--budget", "5", *ompl)
     assert report["overall"]["solved"] == len(ARMAR_PROBLEMS) and report["overall"]["ends_elsewhere"] == 0
     if ompl:
         assert report["ompl"]["overall"]["solved"] == len(ARMAR_PROBLEMS)
@@ -256,12 +260,8 @@ def test_pose_goals_of_moveit_requests_are_met_by_the_pose_planners(tmp_path):
     folder = tmp_path / "problems" / "shelf_armar3"
     _write_armar_problems(folder)
     _pose_goal_requests(folder)
-    out = tmp_path / "report.json"
     for planner, limit in (("ik_rrt", "0"), ("jplus_rrt", "1")):
-        result = runner.invoke(app, ["bench", "mbm", str(tmp_path / "problems"), "--robot", "armar3", "--planner",
-                                     planner, "--budget", "5", "--limit", limit, "--json", str(out)])
-        assert result.exit_code == 0, result.output
-        report = json.loads(out.read_text())
+        result, report = _bench_armar(tmp_path, "--planner", planner, "--budget", "5", "--limit", limit)
         overall, runs = report["overall"], [run["ours"] for run in report["runs"]]
         assert overall["solved"] == len(runs) == (2 if limit == "0" else 1), (planner, overall)
         assert overall["colliding_paths"] == 0 and overall["goal_unsatisfied"] == 0
@@ -273,10 +273,8 @@ def test_pose_goals_of_moveit_requests_are_met_by_the_pose_planners(tmp_path):
     # tolerances no planner meets: the path counts as unsolved, its status stays the planner's
     request = folder / "request0001.yaml"
     request.write_text(request.read_text().replace("_axis_tolerance: 0.01", "_axis_tolerance: 0.0"))
-    result = runner.invoke(app, ["bench", "mbm", str(tmp_path / "problems"), "--robot", "armar3", "--planner",
-                                 "jplus_rrt", "--budget", "5", "--limit", "1", "--json", str(out)])
-    assert result.exit_code == 0, result.output
-    overall = json.loads(out.read_text())["overall"]
+    result, report = _bench_armar(tmp_path, "--planner", "jplus_rrt", "--budget", "5", "--limit", "1")
+    overall = report["overall"]
     assert overall["solved"] == 0 and overall["statuses"] == {"success": 1} and overall["goal_unsatisfied"] == 1
     assert "pose goals: 0 of 1 paths end within" in " ".join(result.output.split())
     result = runner.invoke(app, ["bench", "mbm", str(tmp_path / "problems"), "--robot", "armar3"])
@@ -306,12 +304,8 @@ def test_alternative_pose_goals_are_any_of_them(tmp_path):
         pose["position"] = (np.asarray(pose["position"]) + [3.0, 0.0, 0.0]).tolist()
         request["goal_constraints"] = [far, goal]
         path.write_text(yaml.safe_dump(request))
-    out = tmp_path / "report.json"
     for planner, limit in (("ik_rrt", "0"), ("jplus_rrt", "1")):
-        result = runner.invoke(app, ["bench", "mbm", str(tmp_path / "problems"), "--robot", "armar3", "--planner",
-                                     planner, "--budget", "5", "--limit", limit, "--json", str(out)])
-        assert result.exit_code == 0, result.output
-        report = json.loads(out.read_text())
+        _, report = _bench_armar(tmp_path, "--planner", planner, "--budget", "5", "--limit", limit)
         runs = [run["ours"] for run in report["runs"]]
         assert report["overall"]["solved"] == len(runs) and all(run["goal_satisfied"] for run in runs), planner
         assert all(run["goal_error_m"] <= np.sqrt(3) * 1e-2 for run in runs)  # from the near goal's centre
