@@ -22,7 +22,6 @@ from prehensile.scene.scene import Scene
 from prehensile.storage import atomic_write_bytes
 
 ROBOT_COLORS = ("#8fa3bf", "#a993c4", "#7fb0b8", "#c49bb4", "#9aa7b0")  # the scene's robots in turn
-ROBOT_COLOR_NAMES = ("blue-grey", "lilac", "teal", "mauve", "grey")  # for titles and legends
 PATH_START, PATH_GOAL = ("#4f7cc4", "blue"), ("#dd8a36", "orange")  # a path's robot copies blend from one to the other
 IDLE_ROBOT_COLOR = "#cfcfcf"  # robots beside a drawn path
 OBSTACLE_COLOR = "#c8b28a"
@@ -35,10 +34,9 @@ _MAX_EDGE = 0.08  # m
 _LIGHT = np.array([0.35, -0.45, 0.82]) / np.linalg.norm([0.35, -0.45, 0.82])
 
 
-def robot_color(index: int) -> tuple[str, str]:
-    """(hex colour, its name) of the scene's robot ``index`` in pictures (the palette repeats)."""
-    k = index % len(ROBOT_COLORS)
-    return ROBOT_COLORS[k], ROBOT_COLOR_NAMES[k]
+def robot_color(index: int) -> str:
+    """Hex colour of the scene's robot ``index`` in pictures (the palette repeats)."""
+    return ROBOT_COLORS[index % len(ROBOT_COLORS)]
 
 
 def path_colors(count: int) -> list[str]:
@@ -144,7 +142,7 @@ def scene_triangles(
     drawn: set[tuple] = set()  # (model, link, geometry, pose) already drawn
     for r, robot in enumerate(scene.robots):
         red = colliding_links.get(robot.name, set())
-        color = (robot_colors or {}).get(robot.name) or robot_color(r)[0]
+        color = (robot_colors or {}).get(robot.name) or robot_color(r)
         per_link: dict[str, list[np.ndarray]] = {}
         for g, (link, geometry, T) in enumerate(robot.world_geometries(kind)):
             key = (id(robot.model), link, g, np.asarray(T).tobytes())
