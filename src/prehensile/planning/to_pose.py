@@ -57,7 +57,8 @@ def plan_to_pose(ctx: PlanningContext, q_start: np.ndarray, target: np.ndarray |
             T_tip_tcp.
     """
     if planner not in POSE_PLANNERS:
-        raise PrehensileError(f"planner '{planner}' does not plan to a pose; valid: {', '.join(POSE_PLANNERS)}")
+        raise PrehensileError(f"planner '{planner}' does not plan to a pose; valid: {', '.join(POSE_PLANNERS)} "
+                              "(ik_rrt is RRT-Connect with goal configurations sampled by IK as it searches)")
     more = None
     if region is not None:
         if target is not None or T_tip_tcp is not None:
