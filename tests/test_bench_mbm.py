@@ -382,6 +382,20 @@ def test_pose_planners_need_a_chain_and_no_ompl(tmp_path):
         in result.output
     result = runner.invoke(app, [*base, "--compare-ompl"])
     assert result.exit_code == 2 and "compare OMPL with planner rrt_connect" in result.output
+    import yaml  # a group of both arms has no one tip to plan to
+
+    from prehensile import robots
+
+    both = robots.load("armar3").chain("TorsoBothArms").joint_names
+    data = yaml.safe_load(request.read_text())
+    data["group_name"] = "TorsoBothArms"
+    data["goal_constraints"][0]["joint_constraints"] += [{"joint_name": j, "position": 0.0} for j in both
+                                                        if j.endswith("_L") or j.startswith("Hip")]
+    request.write_text(yaml.safe_dump(data))
+    result = runner.invoke(app, base)
+    assert result.exit_code == 2
+    assert ("request0002.yaml: group: ik_rrt plans the pose of one tip, and group 'TorsoBothArms' branches: "
+            "Shoulder_1_") in " ".join(result.output.split())
 
 
 def test_ball_radius_sizes_the_generated_balls(tmp_path):

@@ -358,6 +358,10 @@ _GOAL = [{"joint_constraints": [{"joint_name": "j", "position": 1.0}]}]
      "r.yaml: start_state.joint_state.name: expected a list, got int"),
     ({"goal_constraints": _GOAL, "num_planning_attempts": "two"},
      "r.yaml: num_planning_attempts: expected a whole number >= 1, got 'two'"),
+    ({"goal_constraints": [{"joint_constraints": _GOAL[0]["joint_constraints"] * 2}]},
+     "r.yaml: goal_constraints[0].joint_constraints[1]: joint 'j' is constrained twice in this goal"),
+    ({"start_state": {"joint_state": {"name": ["j", "k", "j"], "position": [0.0, 0.0, 1.0]}}, "goal_constraints": _GOAL},
+     "r.yaml: start_state.joint_state.name: j given twice"),
 ])
 def test_wrongly_typed_request_fields_are_named(request_data, message):
     with pytest.raises(SceneError) as info:

@@ -46,7 +46,9 @@ ratio over the problems both solved.
 
 from __future__ import annotations
 
+import contextlib
 import functools
+import gc
 import logging
 import time
 import zlib
@@ -62,6 +64,7 @@ from prehensile.errors import PrehensileError
 from prehensile.kinematics import link_pose
 from prehensile.model.robot_model import RobotModel
 from prehensile.planning import PlanningContext, RRTConnectSettings, rrt_connect
+from prehensile.planning.certify import certified_escape
 from prehensile.planning.to_pose import POSE_PLANNERS, plan_to_pose, region_tool_frame
 from prehensile.scene.moveit import MBMProblem, iter_mbm_problems
 from prehensile.settings import FINITE_POSITIVE, POSITIVE, at_least, check_fields
@@ -262,7 +265,16 @@ def goal_tip(model: RobotModel, problem: MBMProblem, planner: str) -> str | None
         raise PrehensileError(f"{request.source}: group: {planner} plans to the pose of a chain's tip, and "
                               f"'{group}' is not a chain of robot '{model.name}' (chains: "
                               f"{', '.join(model.chains) or '(none)'}{'' if model.srdf_source else '; give the SRDF'})")
-    return model.chain(group).tip_link
+    chain = model.chain(group)
+    tip_path = set(model.path_to_root(chain.tip_link))
+    astray = [joint for joint in chain.joint_names if not any(  # off the chain and not below its tip
+        link in tip_path or tip_path <= set(model.path_to_root(link))
+        for link, name in enumerate(model.link_joint_names) if name == joint)]
+    if astray:
+        raise PrehensileError(f"{request.source}: group: {planner} plans the pose of one tip, and group '{group}' "
+                              f"branches: {', '.join(astray)} move(s) neither the path to its tip '{chain.tip_link}' "
+                              "nor what lies below it; plan it with rrt_connect")
+    return chain.tip_link
 
 
 def pose_goal_frames(model: RobotModel, problem: MBMProblem, tip: str, q_start: np.ndarray,
@@ -353,12 +365,27 @@ def problem_seed(settings: MBMSettings, problem: MBMProblem) -> list[int]:
     return [settings.seed, zlib.crc32(problem.scenario.encode()), problem.index]
 
 
+@contextlib.contextmanager
+def _without_gc():
+    """Python's cyclic garbage collector paused, as ``timeit`` does: a collection of what
+    preparing the problem left behind would otherwise land, at tens of milliseconds, in
+    whichever timed call allocates next."""
+    enabled = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if enabled:
+            gc.enable()
+
+
 def run_ours(prepared: PreparedProblem, settings: MBMSettings) -> dict:
     """The per-problem record of our planner (``settings.planner``) on one prepared problem."""
     rng = np.random.default_rng(problem_seed(settings, prepared.problem))
-    start = time.perf_counter()
-    result = _plan(prepared, settings, rng)
-    wall = time.perf_counter() - start
+    with _without_gc():
+        start = time.perf_counter()
+        result = _plan(prepared, settings, rng)
+        wall = time.perf_counter() - start
     return _record(prepared, result, wall - result.stats.certify_time_s, settings, certified=True)
 
 
@@ -385,8 +412,9 @@ def run_ompl(prepared: PreparedProblem, settings: MBMSettings) -> dict:
     from prehensile.benchmarking.ompl_peer import OMPLSettings, ompl_rrt_connect
 
     ompl_settings = OMPLSettings(time_budget_s=settings.time_budget_s, resolution=settings.resolution)
-    result = ompl_rrt_connect(prepared.ctx.space, prepared.ctx.spheres, prepared.q_start, prepared.q_goal,
-                              ompl_settings, seed=settings.seed)
+    with _without_gc():
+        result = ompl_rrt_connect(prepared.ctx.space, prepared.ctx.spheres, prepared.q_start, prepared.q_goal,
+                                  ompl_settings, seed=settings.seed)
     return _record(prepared, result, result.stats.plan_time_s + result.stats.simplify_time_s, settings, certified=False)
 
 
@@ -575,11 +603,16 @@ def run_mbm(problems_path: str | Path, model: RobotModel, spheres: tuple[SphereM
 
 def warm_up(model: RobotModel, spheres: tuple[SphereModel, SphereModel | None], problem: MBMProblem,
             settings: MBMSettings) -> None:
-    """Compile (or load from numba's cache) every kernel on one problem before timing, the
-    clearance of certified escapes too (few problems need one)."""
+    """Compile (or load from numba's cache) every kernel on one problem before timing, those of
+    certified escapes too (few problems need one: the screening of the ends, the escape's
+    search and certification)."""
     start = time.perf_counter()
     prepared = PreparedProblem(model, spheres, problem, settings)
     _plan(prepared, settings)
-    prepared.ctx.spheres.is_free(prepared.q_start)
-    prepared.ctx.spheres.clearance(prepared.q_start, self_pairs=False)
+    ctx, q = prepared.ctx, prepared.q_start
+    ctx.spheres.is_free(q)
+    ctx.spheres.clearance(q, self_pairs=False)
+    ctx.spheres.screen(q, 0.5 * ctx.resolution)
+    ctx.exact_screen(q)
+    certified_escape(ctx, q, q, np.random.default_rng(0), 0.5 * ctx.resolution, attempts=2)  # a random direction
     log.info("warm-up (compilation) took %.2f s", time.perf_counter() - start)

@@ -127,8 +127,10 @@ def print_report(report: dict) -> None:
                              if k == 0 else "")
             table.add_row(*cells, end_section=k == len(rows) - 1 and bool(ompl))
     console.print(table)
-    statuses = ", ".join(f"{k} {v}" for k, v in report["overall"]["statuses"].items())
-    console.print(f"ours: {statuses}. Times: search + simplification, over solved problems; path m: "
+    statuses = "; ".join(f"{name}: " + ", ".join(f"{k} {v}" for k, v in summary["statuses"].items())
+                         for name, summary in (("ours", report["overall"]), ("OMPL", ompl and ompl["overall"]))
+                         if summary)
+    console.print(f"{statuses}. Times: search + simplification, over solved problems; path m: "
                   "workspace-weighted length (no robot point travels farther); colliding: returned paths the exact "
                   "meshes reject"
                   + ("; speed-up: OMPL's time / ours" if ompl else ""))

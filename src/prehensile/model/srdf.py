@@ -47,50 +47,24 @@ def _chain(model: RobotModel, name: str, el, where: str) -> Chain:
                          where)
 
 
-def _group_links(model: RobotModel, groups: dict, name: str, source: str) -> set[int]:
-    """Indices of the links of group ``name`` (checked by :func:`_group_joints` first): the
-    links of its chain from base to tip, its <link>s, the child links of its joints and those
-    of its subgroups. A link the robot lacks is skipped with a warning, as MoveIt drops it."""
-    links: set[int] = set()
-    for el in groups[name]:
-        where = f"{source}: group '{name}' <{el.tag}>"
-        if el.tag == "chain":
-            chain = _chain(model, name, el, where)
-            path = model.path_to_root(chain.tip_link)
-            links.update(path[: path.index(model.link_index(chain.base_link)) + 1])
-        elif el.tag == "link":
-            link = required(el, "name", where)
-            if link in model.link_names:
-                links.add(model.link_index(link))
-            else:
-                log.warning("%s: robot '%s' has no link '%s'; skipped", where, model.name, link)
-        elif el.tag in ("joint", "passive_joint"):
-            joint = required(el, "name", where)
-            links.update(i for i, j in enumerate(model.link_joint_names) if j == joint)
-        elif el.tag == "group":
-            links |= _group_links(model, groups, required(el, "name", where), source)
-    return links
-
-
-def _group_chain(model: RobotModel, groups: dict, name: str, source: str) -> Chain | None:
-    """A chain for the group: its <chain> if it has one, else the span of its joints. The tip
-    of the span is the deepest link of the group's serial part (the links every other link of
-    the group lies above or below: the hand of an arm-and-hand group, not a finger) if one of
-    the group's joints moves it, else the deepest link a joint of the group moves."""
+def _group_chain(model: RobotModel, groups: dict, name: str, source: str, effectors: set[str]) -> Chain | None:
+    """A chain for the group: its <chain> if it has one; for a group of subgroups of which all
+    but one are end-effector groups (MoveIt's arm-and-hand group), the other one's chain with
+    all the group's joints; else the span of its joints, up to the deepest link they move."""
     for el in groups[name]:
         if el.tag == "chain":
             return _chain(model, name, el, f"{source}: group '{name}' <chain>")
     joints = _group_joints(model, groups, name, source)
     if not joints:
         return None
-    moved = [i for i, j in enumerate(model.link_joint_names) if j in joints]
-    above = {k: set(model.path_to_root(k)) for k in _group_links(model, groups, name, source)}
-    serial = [k for k in above if all(k in above[other] or other in above[k] for other in above)]
-    depth = {k: len(model.path_to_root(k)) for k in [*moved, *serial]}
-    tip = max(serial, key=depth.get, default=None)
-    if tip is None or not any(k in above[tip] for k in moved):
-        tip = max(moved, key=depth.get)
-    base = model.link_names[int(model.link_parent[min(moved, key=depth.get)])]
+    subgroups = [required(el, "name", f"{source}: group '{name}' <group>") for el in groups[name] if el.tag == "group"]
+    arms = [sub for sub in subgroups if sub not in effectors]
+    arm = _group_chain(model, groups, arms[0], source, effectors) if subgroups and len(arms) == 1 else None
+    if arm is not None:
+        return Chain(name, arm.base_link, arm.tip_link, tuple(joints))
+    links = [i for i, j in enumerate(model.link_joint_names) if j in joints]
+    tip = max(links, key=lambda i: len(model.path_to_root(i)))
+    base = model.link_names[int(model.link_parent[min(links, key=lambda i: len(model.path_to_root(i)))])]
     return Chain(name, base, model.link_names[tip], tuple(joints))
 
 
@@ -122,8 +96,9 @@ def apply_srdf(model: RobotModel, path: str | Path) -> RobotModel:
     source = str(path)
     groups = {required(g, "name", f"{source}: <group>"): list(g) for g in root.findall("group")}
     chains = dict(model.chains)
+    effectors = {el.get("group") for el in root.findall("end_effector")}
     for name in groups:
-        chain = _group_chain(model, groups, name, source)
+        chain = _group_chain(model, groups, name, source, effectors)
         if chain is not None:
             chains[name] = chain
 

@@ -43,6 +43,7 @@ about a fifth of a median query, in the caches left cold by building its context
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -345,6 +346,16 @@ def _plant(nodes, parents, flags, points, counters, t, qs, parent, flag, idx, w)
                   flag[r], idx, w)
 
 
+@functools.cache
+def _load_planting() -> None:
+    """Load :func:`_plant` (numba compiles it or reads it from its cache on first use, a few
+    ms) once per process, before a search's clock starts: only certified escapes and goals
+    added to a running search use it, inside the budget."""
+    one, index = np.zeros((2, 1, 1)), np.zeros((2, 1), dtype=np.int64)
+    _plant(one, index, index.copy(), one.copy(), np.zeros(9, dtype=np.int64), 0, np.zeros((0, 1)),
+           np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(1, dtype=np.int64), np.ones(1))
+
+
 @njit(cache=True, _nrt=False)
 def _plant_ends(ends, screen, nodes, parents, flags, points, counters, idx, w, checker, scratch):
     """Plant ends[0] as the root of the start tree and ends[1:] as roots of the goal tree if each
@@ -492,6 +503,7 @@ class RRTConnectSearch:
     def __init__(self, ctx: PlanningContext, q_start: np.ndarray, settings: RRTConnectSettings = RRTConnectSettings(),
                  rng: np.random.Generator | int | None = None) -> None:
         ctx.warm_up(settings.certify or settings.escape)
+        _load_planting()
         started = clock()
         self.ctx, self.settings = ctx, settings
         self.rng = planner_rng(rng)

@@ -319,6 +319,8 @@ def _goal(constraints: Any, where: str) -> dict[str, float] | PoseGoal:
         jc = _mapping(jc, here)
         if "joint_name" not in jc:
             raise SceneError(f"{here}: missing 'joint_name'")
+        if str(jc["joint_name"]) in goal:
+            raise SceneError(f"{here}: joint '{jc['joint_name']}' is constrained twice in this goal")
         goal[str(jc["joint_name"])] = _number(jc.get("position"), f"{here}.position")
     pose_goal = _pose_goal(constraints, where)
     if not goal and pose_goal is None:
@@ -506,6 +508,9 @@ def _joint_state(state: Any, where: str) -> dict[str, float]:
     names, positions = (_list(state.get(key), f"{where}.{key}") for key in ("name", "position"))
     if len(names) != len(positions):
         raise SceneError(f"{where}: {len(names)} names but {len(positions)} positions")
+    repeated = sorted({str(n) for n in names if names.count(n) > 1})
+    if repeated:
+        raise SceneError(f"{where}.name: {', '.join(repeated)} given twice")
     return {str(n): _number(p, f"{where}.position[{i}]") for i, (n, p) in enumerate(zip(names, positions))}
 
 
