@@ -27,7 +27,8 @@ Measured per problem and planner:
 
 - **planning time**: search plus simplification, wall clock, the same definition for ours
   (our planner's call minus its reported certification
-  time) and the peer (OMPL ``solve`` + ``simplifySolution``);
+  time) and the peer (OMPL ``solve`` + ``simplifySolution``), with Python's garbage collector
+  paused as ``timeit`` does;
 - **certification time**: our planner's exact-mesh certification, reported separately;
 - **path length**: workspace-weighted length (m) of the returned path, the same metric for both;
 - **exact collision**: every returned path is re-checked here, independently of the planner's
