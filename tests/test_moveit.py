@@ -141,6 +141,24 @@ def test_scenario_folders_sharing_a_name_stay_apart_and_archives_name_their_top(
     assert [(p.scenario, p.index) for p in iter_mbm_problems(tmp_path / "y.tar.bz2")] == [("y", 1)]
 
 
+def test_a_start_given_as_a_diff_changes_the_scenes_robot_state(tmp_path):
+    scene = {"name": "s", "robot_state": {"joint_state": {"name": ["j1", "j2", "j3"], "position": [0.1, 0.2, 0.3]}},
+             "world": {"collision_objects": []}}
+    goal = [{"joint_constraints": [{"joint_name": "j1", "position": 0.5}]}]
+    folder = tmp_path / "set" / "x"
+    folder.mkdir(parents=True)
+    for index, start in ((1, {"is_diff": True, "joint_state": {"name": ["j2"], "position": [0.7]}}),
+                         (2, {"joint_state": {"name": ["j2"], "position": [0.7]}})):
+        (folder / f"scene{index:04d}.yaml").write_text(yaml.safe_dump(scene))
+        request = {"start_state": start, "goal_constraints": goal}
+        (folder / f"request{index:04d}.yaml").write_text(yaml.safe_dump(request))
+    diff, whole = (p.request for p in iter_mbm_problems(tmp_path / "set"))
+    assert diff.start_is_diff and dict(diff.start) == {"j1": 0.1, "j2": 0.7, "j3": 0.3}
+    assert not whole.start_is_diff and dict(whole.start) == {"j2": 0.7}
+    with pytest.raises(SceneError, match=r"r.yaml: start_state.is_diff: expected true or false, got 'yes'"):
+        motion_plan_request_from_dict({"start_state": {"is_diff": "yes"}, "goal_constraints": goal}, "r.yaml")
+
+
 def _one_problem(folder: Path) -> None:
     folder.mkdir(parents=True)
     (folder / "scene0001.yaml").write_text(yaml.safe_dump({"name": "s", "world": {"collision_objects": []}}))
@@ -360,8 +378,8 @@ _GOAL = [{"joint_constraints": [{"joint_name": "j", "position": 1.0}]}]
      "r.yaml: num_planning_attempts: expected a whole number >= 1, got 'two'"),
     ({"goal_constraints": [{"joint_constraints": _GOAL[0]["joint_constraints"] * 2}]},
      "r.yaml: goal_constraints[0].joint_constraints[1]: joint 'j' is constrained twice in this goal"),
-    ({"start_state": {"joint_state": {"name": ["j", "k", "j"], "position": [0.0, 0.0, 1.0]}}, "goal_constraints": _GOAL},
-     "r.yaml: start_state.joint_state.name: j given twice"),
+    ({"start_state": {"joint_state": {"name": ["j", "k", "j"], "position": [0.0, 0.0, 1.0]}},
+      "goal_constraints": _GOAL}, "r.yaml: start_state.joint_state.name: j given twice"),
 ])
 def test_wrongly_typed_request_fields_are_named(request_data, message):
     with pytest.raises(SceneError) as info:

@@ -23,6 +23,9 @@ MoveIt conventions and how they are mapped:
   sphere ``[radius]``, cylinder ``[height, radius]`` (note the order: height first), cone
   ``[height, radius]``. A cone becomes a **conservative cylinder** of the same height and base
   radius (it encloses the cone), logged at warning level. Prisms and planes are rejected.
+- A request's ``start_state`` with ``is_diff: true`` changes the scene's ``robot_state``: the
+  problems of :func:`iter_mbm_problems` start from the scene's joint values with the request's
+  set over them.
 - A request's goals are its ``goal_constraints``, alternatives as in MoveIt (a path that reaches
   any of them solves the request): each is its ``joint_constraints``, or one position
   constraint (regions: box, sphere and cylinder primitives) with at most one orientation
@@ -84,6 +87,8 @@ class MotionPlanRequest:
         pose_goal: ``goal_constraints[0]``'s position (and orientation) constraint, or None.
         alternatives: the other goals, ``goal_constraints[1:]``, of the first one's kind: joint
             goals (joint name -> value) or pose goals (:class:`~prehensile.scene.pose_goal.PoseGoal`).
+        start_is_diff: ``start_state.is_diff``: the start is the scene's robot state with
+            ``start``'s joints changed (:func:`iter_mbm_problems` merges the two into ``start``).
         planner_id: MoveIt planner name ("" if absent).
         allowed_planning_time: s (0 if absent).
         num_planning_attempts: attempts requested (1 if absent).
@@ -95,6 +100,7 @@ class MotionPlanRequest:
     goal: Mapping[str, float]
     pose_goal: PoseGoal | None = None
     alternatives: tuple = ()
+    start_is_diff: bool = False
     planner_id: str = ""
     allowed_planning_time: float = 0.0
     num_planning_attempts: int = 1
@@ -209,8 +215,13 @@ def iter_mbm_problems(path: str | os.PathLike, robot: RobotModel | None = None,
             raise SceneError(f"{path}: {scenario} problem {index:04d} has no {missing} file")
         scene_name, scene_text = pair["scene"]
         request_name, request_text = pair["request"]
-        scene = moveit_scene_from_dict(_parse(scene_text, scene_name), scene_name, robot)
+        scene_data = _parse(scene_text, scene_name)
+        scene = moveit_scene_from_dict(scene_data, scene_name, robot)
         request = motion_plan_request_from_dict(_parse(request_text, request_name), request_name)
+        if request.start_is_diff:  # the scene's robot state, with the request's joints changed
+            state = _mapping(scene_data.get("robot_state") or {}, f"{scene_name}: robot_state")
+            given = _joint_state(state.get("joint_state") or {}, f"{scene_name}: robot_state.joint_state")
+            request = dataclasses.replace(request, start={**given, **request.start})
         yield MBMProblem(scenario, index, scene, request)
 
 
@@ -283,6 +294,9 @@ def motion_plan_request_from_dict(data: Any, source: str) -> MotionPlanRequest:
     data = _mapping(data, source)
     start_state = _mapping(data.get("start_state") or {}, f"{source}: start_state")
     start = _joint_state(start_state.get("joint_state") or {}, f"{source}: start_state.joint_state")
+    is_diff = start_state.get("is_diff", False)
+    if not isinstance(is_diff, bool):
+        raise SceneError(f"{source}: start_state.is_diff: expected true or false, got {is_diff!r}")
     if start_state.get("attached_collision_objects"):
         raise SceneError(f"{source}: start_state.attached_collision_objects: not supported in a request; attach the "
                          "objects in the scene's robot_state")
@@ -301,6 +315,7 @@ def motion_plan_request_from_dict(data: Any, source: str) -> MotionPlanRequest:
         goal={} if isinstance(first, PoseGoal) else first,
         pose_goal=first if isinstance(first, PoseGoal) else None,
         alternatives=tuple(goals[1:]),
+        start_is_diff=is_diff,
         planner_id=str(data.get("planner_id", "") or ""),
         allowed_planning_time=_number(data.get("allowed_planning_time", 0.0), f"{source}: allowed_planning_time"),
         num_planning_attempts=_count(data.get("num_planning_attempts", 1) or 1, f"{source}: num_planning_attempts"),
