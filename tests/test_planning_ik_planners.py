@@ -102,6 +102,19 @@ def test_ik_planners_to_a_pose_the_start_reaches_stay_there(panda_scene):
         assert result.path.shape == (2, ctx.model.dof) and np.abs(result.path - q0).max() < 1e-6
 
 
+def test_jplus_rrt_says_how_near_it_came_when_it_times_out(panda_scene):
+    ctx, solver, q0, goals = panda_scene
+    far = goals[:1].copy()
+    far[0, :3, 3] += [2.0, 0.0, 0.0]  # 2 m beyond a reachable grasp: out of reach
+    result = jplus_rrt(ctx, q0, far, settings=JPlusRRTSettings(time_budget_s=0.2), rng=0)
+    assert result.status is PlanStatus.TIMEOUT
+    reason = result.info["reason"]
+    assert reason.startswith("no goal reached: the tool came within ") and "out of reach" in reason
+    nearest = float(reason.split("within ")[1].split(" mm")[0]) / 1e3
+    reach = np.linalg.norm(goals[0, :3, 3] + [2.0, 0.0, 0.0] - solver.tool_pose(q0)[:3, 3])
+    assert 1.0 < nearest < reach + 1e-3  # at least 2 m less the arm's reach, no farther than the start's tool
+
+
 def test_ik_planners_start_where_only_the_balls_collide(panda_scene):
     """As rrt_connect: a start the conservative balls reject but the meshes do not leaves along
     a certified escape motion."""

@@ -320,7 +320,20 @@ def _grow(ctx: PlanningContext, q_start: np.ndarray, goals, s: JPlusRRTSettings,
     info = {"attempts": attempt + 1, "refined": tuple(sorted(links))} | ({} if report is None else {"certify": report})
     if status is PlanStatus.SUCCESS:
         return PlanResult(status, path, stats, g, info=info | goals.info(tree.q[reached], g))
-    return ctx.explain(PlanResult(status, np.zeros((0, ctx.model.dof)), stats, info=info), q_start)
+    result = ctx.explain(PlanResult(status, np.zeros((0, ctx.model.dof)), stats, info=info), q_start)
+    if status is PlanStatus.TIMEOUT and tree is not None and not result.info.get("reason"):
+        result = replace(result, info={**result.info, "reason": _closest_approach(tree, goals)})
+    return result
+
+
+def _closest_approach(tree: _Tree, goals) -> str:
+    """Why a search timed out, as far as its tree tells: how near its nearest node came to a goal."""
+    near = [goals.distance(tree.tools[tree.first:tree.count], g) for g in range(goals.count)]
+    g = int(np.argmin([d.min() for d in near]))
+    node = tree.first + int(np.argmin(near[g]))
+    _, position, rotation = goals.step(tree.q[node], tree.tools[node], g)
+    return (f"no goal reached: the tool came within {1e3 * position:.1f} mm and {rotation:.3f} rad of one at best "
+            f"({tree.count} nodes); the goal may be out of reach, or behind obstacles the Jacobian steps cannot pass")
 
 
 def _search(ctx: PlanningContext, q_start: np.ndarray, goals, s: JPlusRRTSettings, rng: np.random.Generator,
