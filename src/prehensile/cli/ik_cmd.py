@@ -20,7 +20,7 @@ from prehensile.ik import ChainSolver, CompleteIKSettings, JacobianIKSettings, s
 from prehensile.ik.analytic_nao import nao_arm_ik
 from prehensile.ik.fabrik import fabrik
 from prehensile.kinematics import link_pose
-from prehensile.model.robot_model import PRISMATIC, RobotModel
+from prehensile.model.robot_model import RobotModel
 from prehensile.spatial import matrix_to_rpy, rpy_to_matrix
 
 METHODS = (*JACOBIAN_METHODS, "fabrik", "analytic")
@@ -83,13 +83,7 @@ def out_of_reach(model: RobotModel, chain: str, position: np.ndarray) -> str | N
     spec = model.chain(chain)
     path = model.path_to_root(spec.tip_link)
     below = path[: path.index(model.link_index(spec.base_link))]  # the tip up to the link below the base
-    reach = 0.0
-    for k in below:
-        reach += float(np.linalg.norm(model.joint_origin[k][:3, 3]))
-        q = model.joint_q_index[k]
-        if model.joint_type[k] == PRISMATIC:
-            reach += abs(model.joint_multiplier[k]) * max(abs(model.lower[q]), abs(model.upper[q])) \
-                + abs(model.joint_offset[k])
+    reach = float(np.sum(np.linalg.norm(model.joint_origin[below, :3, 3], axis=1) + model.joint_travel[below]))
     base = link_pose(model, model.neutral_configuration(), spec.base_link)[:3, 3]
     distance = float(np.linalg.norm(position - base))
     if distance <= reach:

@@ -128,6 +128,19 @@ class RobotModel:
         table.setflags(write=False)
         return table
 
+    @cached_property
+    def joint_travel(self) -> np.ndarray:
+        """(L,) how far each link's prismatic joint can shift the link from the joint's origin
+        (m: the largest value within its limits, times its mimic multiplier, plus its offset);
+        0 for other joints."""
+        travel = np.zeros(self.n_links)
+        for i in np.flatnonzero(self.joint_type == PRISMATIC):
+            q = self.joint_q_index[i]
+            travel[i] = abs(self.joint_multiplier[i]) * max(abs(self.lower[q]), abs(self.upper[q])) \
+                + abs(self.joint_offset[i])
+        travel.setflags(write=False)
+        return travel
+
     @property
     def dof(self) -> int:
         """Number of configuration variables (length of q)."""

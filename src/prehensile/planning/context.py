@@ -68,11 +68,7 @@ def ball_joint_weights(model: RobotModel, links: np.ndarray, centers: np.ndarray
     on the way down, triangle inequality), so it holds in every configuration. Prismatic: 1.
     Mimic multipliers scale both.
     """
-    travel = np.zeros(model.n_links)
-    for i in np.flatnonzero(model.joint_type == PRISMATIC):
-        qi = model.joint_q_index[i]
-        travel[i] = abs(model.joint_multiplier[i]) * max(abs(model.lower[qi]), abs(model.upper[qi])) \
-            + abs(model.joint_offset[i])
+    travel = model.joint_travel
     links, centers, radii = np.asarray(links, dtype=np.int64), np.asarray(centers, float), np.asarray(radii, float)
     W = np.zeros((len(links), model.n_links))
     for link in np.unique(links):  # the balls of one link share the walk to the root

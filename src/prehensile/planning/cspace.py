@@ -43,12 +43,7 @@ def joint_weights(model: RobotModel, centers: np.ndarray, radii: np.ndarray) -> 
     for i in range(n):
         if model.link_parent[i] >= 0:
             children[model.link_parent[i]].append(i)
-    travel = np.zeros(n)  # how far a prismatic joint can shift its child
-    prismatic = model.joint_type == PRISMATIC
-    for i in np.flatnonzero(prismatic):
-        qi = model.joint_q_index[i]
-        lo, hi = model.lower[qi], model.upper[qi]
-        travel[i] = abs(model.joint_multiplier[i]) * max(abs(lo), abs(hi)) + abs(model.joint_offset[i])
+    travel = model.joint_travel
     weights = np.zeros(model.dof)
     for j in range(n):
         if model.joint_type[j] not in (REVOLUTE, PRISMATIC):
