@@ -53,7 +53,7 @@ event.register("numba:compiler_lock", _CompilerLockTime())
 
 def clock() -> float:
     """Seconds on a monotonic clock that stands still while numba compiles or loads a kernel."""
-    return _monotonic() - COMPILING[0]
+    return _monotonic() - COMPILING.item()
 
 
 def compile_time() -> float:

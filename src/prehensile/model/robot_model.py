@@ -141,7 +141,7 @@ class RobotModel:
         travel.setflags(write=False)
         return travel
 
-    @property
+    @cached_property
     def dof(self) -> int:
         """Number of configuration variables (length of q)."""
         return len(self.joint_names)

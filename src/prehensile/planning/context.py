@@ -232,6 +232,9 @@ class PlanningContext:
         :func:`~prehensile.collision.sphere_kernels.clearance`; work arrays (see
         :meth:`motion_arrays`)."""
         self.scratch = SK.make_scratch(self.spheres.data)
+        self.end_screening = (*self.spheres.screening, 0.5 * resolution)
+        """:attr:`SphereChecker.screening` and the margin (m, half the resolution) that path ends
+        keep from the world unless they get an escape (the ``screen`` of the planners' kernels)."""
         self.counters = np.zeros(1, dtype=np.int64)
         self._balls, self._cover = base_spheres, None if self.sphere_model.covering else cover
         self.cover_model = self.sphere_model if self.sphere_model.covering else None if cover is None else \

@@ -105,6 +105,8 @@ class ConfigurationSpace:
         """(n,) limits of the planned joints (rad or m; +-inf for continuous joints)."""
         self.continuous = model.continuous[self.indices]
         """(n,) bool: the planned joints without limits."""
+        self.has_continuous = bool(self.continuous.any())
+        """Whether a planned joint is continuous (samples and goals then depend on the turn)."""
         if weights is None:
             if centers is None or radii is None:
                 raise PrehensileError("ConfigurationSpace: give either weights or the link balls (centers, radii)")
@@ -144,7 +146,7 @@ class ConfigurationSpace:
     def sampling_bounds(self, center: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(lower, upper) (n,) of uniform samples: the limits, and for a continuous joint the
         turn ``center +- pi`` around the active vector ``center`` (n,)."""
-        if not self.continuous.any():
+        if not self.has_continuous:
             return self.lower, self.upper
         center = np.asarray(center, dtype=float)
         return (np.where(self.continuous, center - np.pi, self.lower),
@@ -158,7 +160,7 @@ class ConfigurationSpace:
         way, when the shorter one is blocked). Returns (goals (m, dof), row of ``goals`` of each
         (m,)); without continuous joints ``goals`` itself.
         """
-        if not self.continuous.any():
+        if not self.has_continuous:
             return goals, np.arange(len(goals))
         ref = ref[self.indices]
         near = self.nearest_turn(goals[:, self.indices], ref)

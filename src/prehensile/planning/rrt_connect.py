@@ -74,6 +74,7 @@ _CHECKED, _DEAD = 1, 2  # node flags: edge from the parent fully checked; cut of
 # counters: clearance evaluations, iterations, tree sizes, start nodes, path length, goal root,
 # the goal-tree nodes [DIRECT, DIRECT_END) whose direct edges from the start are still to try
 CHECKS, ITERATIONS, SIZE, START_NODES, PATH_LENGTH, GOAL_ROOT, DIRECT, DIRECT_END = 0, 1, 2, 4, 5, 6, 7, 8
+_COUNTERS = 9  # their number
 
 
 @dataclass(frozen=True)
@@ -352,7 +353,7 @@ def _load_planting() -> None:
     ms) once per process, before a search's clock starts: only certified escapes and goals
     added to a running search use it, inside the budget."""
     one, index = np.zeros((2, 1, 1)), np.zeros((2, 1), dtype=np.int64)
-    _plant(one, index, index.copy(), one.copy(), np.zeros(9, dtype=np.int64), 0, np.zeros((0, 1)),
+    _plant(one, index, index.copy(), one.copy(), np.zeros(_COUNTERS, dtype=np.int64), 0, np.zeros((0, 1)),
            np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(1, dtype=np.int64), np.ones(1))
 
 
@@ -412,7 +413,7 @@ class _Trees:
         self.parents, self.flags = np.empty((2, capacity), dtype=np.int64), np.empty((2, capacity), dtype=np.int64)
         self.points, self.work = np.empty((2, space.n, capacity)), np.empty(capacity)
         self._path_rows(2 * capacity)
-        self.counters = np.zeros(9, dtype=np.int64)
+        self.counters = np.zeros(_COUNTERS, dtype=np.int64)
 
     @property
     def arrays(self) -> tuple:
@@ -507,10 +508,10 @@ class RRTConnectSearch:
         started = clock()
         self.ctx, self.settings = ctx, settings
         self.rng = planner_rng(rng)
-        # row 0 the start (a copy: the caller may change theirs), then the goals as planned
-        # (ConfigurationSpace.goal_turns)
-        self.ends = ctx.model.check_one(q_start, "rrt_connect: q_start")[None].copy()
-        self.goal_of = np.zeros(0, dtype=np.int64)  # row of the goals as given, per goal row of self.ends
+        self.start = ctx.model.check_one(q_start, "rrt_connect: q_start").copy()
+        """(dof,) the start configuration (a copy: the caller may change theirs)."""
+        self.ends = self.start[None]  # row 0 the start, then the goals as planned (ConfigurationSpace.goal_turns)
+        self.goal_of: list[int] = []  # row of the goals as given, per goal row of self.ends
         self.given = 0  # goals given
         self.context, self.res, self.refined = ctx, ctx.resolution, frozenset()
         self.state = rng_state(self.rng)
@@ -525,11 +526,6 @@ class RRTConnectSearch:
         self._setup_s = clock() - started  # counted into the next solve's search time
 
     @property
-    def start(self) -> np.ndarray:
-        """(dof,) the start configuration."""
-        return self.ends[0]
-
-    @property
     def goals(self) -> np.ndarray:
         """(k, dof) the goals as planned (a continuous joint's goal once each way round)."""
         return self.ends[1:]
@@ -541,10 +537,10 @@ class RRTConnectSearch:
         found after ``deadline`` (s, :func:`~prehensile.clock.clock`)."""
         started = clock()
         model, space = self.ctx.model, self.ctx.space
-        goals = model.check_configuration(q_goals, "rrt_connect: q_goal")
-        if goals.ndim > 2 or goals.shape[-1] != model.dof:
+        goals = model.check_configuration(q_goals, "rrt_connect: q_goal")  # (..., dof)
+        if goals.ndim > 2:
             raise PrehensileError(f"rrt_connect: q_goal must be ({model.dof},) or (k, {model.dof}), got {goals.shape}")
-        goals = goals.reshape(-1, model.dof).copy()  # its unplanned joints are set below
+        goals = goals.reshape(-1, model.dof)
         if not len(goals):
             raise PrehensileError(f"rrt_connect: q_goal: no goals given (shape {goals.shape})")
         fixed = space.fixed
@@ -554,11 +550,12 @@ class RRTConnectSearch:
                 raise PrehensileError("rrt_connect: goal and start differ in joints that are not planned "
                                       f"({', '.join(model.joint_names[i] for i in differ)}; planned: "
                                       f"{', '.join(space.joint_names)})")
+            goals = goals.copy()
             goals[:, fixed] = self.start[fixed]  # equal within 1e-9: the path keeps them constant
         planned, rows = space.goal_turns(goals, self.start)
-        first = len(self.goals)
+        first = len(self.ends) - 1
         self.ends = np.concatenate((self.ends, planned))
-        self.goal_of = np.concatenate((self.goal_of, self.given + rows))
+        self.goal_of += (self.given + rows).tolist()
         self.given += len(goals)
         if self.trees is not None and self.trees.counters[SIZE]:  # planted: the new goals join the goal tree
             self._append_goals(first, deadline)
@@ -580,7 +577,7 @@ class RRTConnectSearch:
         for row, goal in enumerate(goal_nodes, first):
             if goal is not None:
                 offset = len(nodes)
-                roots.append((offset, int(self.goal_of[row])))
+                roots.append((offset, self.goal_of[row]))
                 nodes += [(q, parent if parent < 0 else offset + parent, flags) for q, parent, flags in goal]
                 self.escapes += len(goal) - 1
         if nodes:
@@ -629,30 +626,30 @@ class RRTConnectSearch:
                                 min(settings.shortcut_iterations, MAX_INSERTED))
             self.goal_row, self.escapes = {}, 0
         if not self.trees.counters[SIZE]:  # the kernel plants ends the balls decide; the others need escapes here
-            if len(self.goals) == 0:
+            if not self.given:
                 return -1, -1
-            self.trees.reserve(1, len(self.goals))
+            self.trees.reserve(1, len(self.ends) - 1)
             if not ctx.balls_decide_ends(self.start) and not (self._plant_exactly(deadline) and self.goal_row):
                 return -1, -1
-        space, chk, trees = ctx.space, ctx.spheres, self.trees
+        space, trees = ctx.space, self.trees
         lower, upper = space.sampling_bounds(self.start[space.indices])
-        screen = (*chk.screening, 0.5 * ctx.resolution)
-        shortcut = (settings.shortcut_iterations, settings.shortcut_time_s, settings.shortcut_min_gain, self._checks)
         last = trees.counters[ITERATIONS] + iterations
         while True:  # again when the trees grew, or when direct edges took some of the iterations
             planting = not trees.counters[SIZE]
             if not (planting or self.goal_row):  # no usable goal (yet)
                 return -1, -1
-            code = _query(self.ends, screen, trees.arrays, settings.shortcut, self.state,
+            code = _query(self.ends, ctx.end_screening, trees.arrays, settings.shortcut, self.state,
                           last - trees.counters[ITERATIONS], deadline, COMPILING, settings.step, self.res,
-                          settings.eager_checks, space.indices, space.weights, lower, upper, self._rows, chk.data,
-                          ctx.scratch, ctx.motion_arrays(self.res), (*shortcut, trees.cum), self._times)
+                          settings.eager_checks, space.indices, space.weights, lower, upper, self._rows,
+                          ctx.spheres.data, ctx.scratch, ctx.motion_arrays(self.res),
+                          (settings.shortcut_iterations, settings.shortcut_time_s, settings.shortcut_min_gain,
+                           self._checks, trees.cum), self._times)
             if code == ENDS:
                 if not self._plant_exactly(deadline):
                     return -1, -1
                 continue
             if planting:  # the kernel planted the start as node 0 of tree 0, the goals as the goal tree's roots
-                self.goal_row, self.escapes = dict(enumerate(self.goal_of.tolist())), 0
+                self.goal_row, self.escapes = dict(enumerate(self.goal_of)), 0
             if code == FOUND:
                 return int(trees.counters[PATH_LENGTH]), int(trees.counters[GOAL_ROOT])
             if (code == FULL and not trees.grow(settings.max_nodes) or clock() >= deadline
@@ -669,11 +666,14 @@ class RRTConnectSearch:
         """
         check_value("RRTConnectSearch.solve: time_budget_s", time_budget_s, FINITE_POSITIVE)
         check_value("RRTConnectSearch.solve: max_iterations", max_iterations, _ITERATION_CAP)
+        return self._solve(time_budget_s, NO_LIMIT if max_iterations is None else int(max_iterations))
+
+    def _solve(self, time_budget_s: float, limit: int) -> PlanResult:
+        """:meth:`solve` with arguments known to be valid (``limit``: the iteration cap, NO_LIMIT for none)."""
         t0 = clock() - self._setup_s
         self._setup_s = 0.0
         deadline = t0 + time_budget_s
         settings = self.settings
-        limit = NO_LIMIT if max_iterations is None else int(max_iterations)
         totals = dict(iterations=0, nodes=0, collision_checks=0, plan_time_s=0.0, simplify_time_s=0.0,
                       certify_time_s=0.0)
         self._checks[0] = 0
@@ -682,7 +682,7 @@ class RRTConnectSearch:
         report: CertifyReport | None = None
         for attempt in range(settings.certify_retries + 1):
             begun = t0 if attempt == 0 else clock()
-            before = None if self.trees is None else self.trees.counters.copy()
+            before = [0] * _COUNTERS if self.trees is None else self.trees.counters.tolist()
             n, root = self._run(deadline, limit)
             if n < 0:
                 status = self.start_status or (PlanStatus.TIMEOUT if clock() >= deadline else PlanStatus.INVALID_GOAL)
@@ -690,11 +690,10 @@ class RRTConnectSearch:
                 # after a failed certification: the covering balls of the refined context reject an end
                 # that the planning balls let through
                 return self._no_path(status, totals, {} if report is None else self._failure_info(attempt, report))
-            counters = self.trees.counters
-            searched = counters if before is None else counters - before
-            totals["iterations"] += int(searched[ITERATIONS])
-            totals["nodes"] = int(counters[SIZE] + counters[SIZE + 1])
-            totals["collision_checks"] += int(searched[CHECKS])
+            counts = self.trees.counters.tolist()
+            totals["iterations"] += counts[ITERATIONS] - before[ITERATIONS]
+            totals["nodes"] = counts[SIZE] + counts[SIZE + 1]
+            totals["collision_checks"] += counts[CHECKS] - before[CHECKS]
             if n == 0:
                 totals["plan_time_s"] += clock() - begun
                 status = PlanStatus.TIMEOUT if report is None else PlanStatus.CERTIFICATION_FAILED
@@ -762,4 +761,4 @@ def rrt_connect(ctx: PlanningContext, q_start: np.ndarray, q_goal: np.ndarray,
     """
     query = RRTConnectSearch(ctx, q_start, settings, rng)
     query.add_goals(q_goal)
-    return ctx.explain(query.solve(settings.time_budget_s), q_start, q_goal)
+    return ctx.explain(query._solve(settings.time_budget_s, NO_LIMIT), q_start, q_goal)  # the settings are checked
