@@ -385,7 +385,8 @@ def _query(ends, screen, trees, prune_path, rng, iterations, deadline, compiling
     (:func:`~prehensile.planning.shortcut.simplify`, the same generator, qa and qb the other
     rows; ``shortcut`` = (attempts, time limit s, min_gain, evaluation counter (1,) int64, cum
     (path rows,))) and set ``counters[PATH_LENGTH]`` to its waypoints. Returns search's result
-    or ENDS; ``times[0]`` is the clock (:func:`~prehensile.clock.clock`) when the search stopped."""
+    or ENDS; ``times[0]`` is the clock (:func:`~prehensile.clock.clock`) when the search stopped,
+    ``times[1]`` on FOUND the path's length (m, :func:`~prehensile.planning.kernels.path_length`)."""
     nodes, parents, flags, points, work, counters, path, marks, owner = trees
     if counters[SIZE] == 0 and not _plant_ends(ends, screen, nodes, parents, flags, points, counters, idx, w,
                                                checker, scratch):
@@ -394,11 +395,13 @@ def _query(ends, screen, trees, prune_path, rng, iterations, deadline, compiling
     code = search(nodes, parents, flags, points, work, counters, path, marks, owner, prune_path, rng, iterations,
                   deadline, compiling, step, res, budget, idx, w, lower, upper, rows[0], checker, scratch, motion)
     times[0] = kernel_clock(compiling)
-    if code == FOUND and prune_path and counters[PATH_LENGTH] >= 3:
-        attempts, limit, min_gain, checks, cum = shortcut
-        counters[PATH_LENGTH] = simplify(path, counters[PATH_LENGTH], marks, attempts, times[0] + limit, compiling,
-                                         min_gain, False, rng, idx, w, res, checker, scratch, motion, checks, cum,
-                                         rows[1], rows[2])
+    if code == FOUND:
+        if prune_path and counters[PATH_LENGTH] >= 3:
+            attempts, limit, min_gain, checks, cum = shortcut
+            counters[PATH_LENGTH] = simplify(path, counters[PATH_LENGTH], marks, attempts, times[0] + limit,
+                                             compiling, min_gain, False, rng, idx, w, res, checker, scratch, motion,
+                                             checks, cum, rows[1], rows[2])
+        times[1] = path_length(path[:counters[PATH_LENGTH]], idx, w)
     return code
 
 
@@ -520,8 +523,8 @@ class RRTConnectSearch:
         self.goal_row: dict[int, int] = {}  # goal tree root node -> row of the goals as given
         self.escapes = 0  # certified escape nodes in the trees
         # work arrays of _query: rows for the sample (the joints not planned at the start's values), qa and qb;
-        # the clock; the shortening's clearance evaluations
-        self._rows, self._times, self._checks = np.empty((3, ctx.model.dof)), np.zeros(1), np.zeros(1, dtype=np.int64)
+        # the clock and the path's length; the shortening's clearance evaluations
+        self._rows, self._times, self._checks = np.empty((3, ctx.model.dof)), np.zeros(2), np.zeros(1, dtype=np.int64)
         self._rows[0] = self.start
         self._setup_s = clock() - started  # counted into the next solve's search time
 
@@ -698,12 +701,12 @@ class RRTConnectSearch:
                 totals["plan_time_s"] += clock() - begun
                 status = PlanStatus.TIMEOUT if report is None else PlanStatus.CERTIFICATION_FAILED
                 return self._no_path(status, totals, self._failure_info(attempt, report))
-            stopped = float(self._times[0])  # the search's end; the shortening ran after it
+            stopped, length = self._times.tolist()  # the search's end (the shortening ran after it); the path's
             totals["plan_time_s"] += stopped - begun
             totals["simplify_time_s"] += clock() - stopped
-            path, space = self.trees.path[:n].copy(), self.context.space
-            info = {"attempts": attempt + 1, "length": path_length(path, space.indices, space.weights),
-                    "escapes": self.escapes, "refined": tuple(sorted(self.refined))}
+            path = self.trees.path[:n].copy()
+            info = {"attempts": attempt + 1, "length": length, "escapes": self.escapes,
+                    "refined": tuple(sorted(self.refined))}
             if settings.certify:
                 report = certify_path(self.context, path)
                 totals["certify_time_s"] += report.time_s
