@@ -64,7 +64,9 @@ def waypoint_marks(rows: int) -> tuple:
     row to the next passed a motion check) and memo (rows, 2) int64 (pairs of ids found
     blocked, rows of -1 free)."""
     ids, checked, memo = np.empty(rows, np.int64), np.empty(rows, np.bool_), np.empty((rows, 2), np.int64)
-    ids.fill(-1), checked.fill(True), memo.fill(-1)  # cheaper than np.full in a query's cold caches
+    ids.fill(-1)  # cheaper than np.full in a query's cold caches
+    checked.fill(True)
+    memo.fill(-1)
     return ids, checked, memo
 
 
