@@ -161,9 +161,10 @@ def clearance(q, data, scratch, cap, scales, slack):
     fastest), then the self pairs. In a motion check a self pair's scale counts only the joints
     between its two links, so its scaled clearance is rarely the smallest; the world's, found
     first, prunes most pairs at their bounding balls (7 % faster on the MotionBenchMaker Panda
-    problems than the reverse order, same evaluations). Each pair of bounding balls (group, then chunk) that cannot beat the best distance
-    so far is skipped with everything inside it; a group's bounding ball is measured against
-    every obstacle's box at once, and the group skipped if none is near enough.
+    problems than the reverse order, same evaluations). Each pair of bounding balls (group,
+    then chunk) that cannot beat the best distance so far is skipped with everything inside it;
+    a group's bounding ball is measured against every obstacle's box at once, and the group
+    skipped if none is near enough.
     """
     (_, fparent, fjtype, forigin, faxis, fqidx, fmult, foffset, gframe, granges, centers, radii, gbcenter, gbradius,
      gtest, gchunks, cranges, cbcenter, cbradius, otype, opose, oparam, oaabb, prad, pairs) = data
