@@ -613,7 +613,7 @@ def warm_up(model: RobotModel, spheres: tuple[SphereModel, SphereModel | None], 
     ctx, q = prepared.ctx, prepared.q_start
     ctx.spheres.is_free(q)
     ctx.spheres.clearance(q, self_pairs=False)
-    ctx.spheres.screen(q, 0.5 * ctx.resolution)
+    ctx.spheres.screen(q, ctx.end_margin)
     ctx.exact_screen(q)
-    certified_escape(ctx, q, q, np.random.default_rng(0), 0.5 * ctx.resolution, attempts=2)  # a random direction
+    certified_escape(ctx, q, q, np.random.default_rng(0), ctx.end_margin, attempts=2)  # a random direction
     log.info("warm-up (compilation) took %.2f s", time.perf_counter() - start)

@@ -232,9 +232,11 @@ class PlanningContext:
         :func:`~prehensile.collision.sphere_kernels.clearance`; work arrays (see
         :meth:`motion_arrays`)."""
         self.scratch = SK.make_scratch(self.spheres.data)
-        self.end_screening = (*self.spheres.screening, 0.5 * resolution)
-        """:attr:`SphereChecker.screening` and the margin (m, half the resolution) that path ends
-        keep from the world unless they get an escape (the ``screen`` of the planners' kernels)."""
+        self.end_margin = 0.5 * resolution
+        """How far (m, half the resolution) a path's ends keep from the world; an end the balls hold
+        nearer gets a certified escape (:func:`~prehensile.planning.certify.certified_escape`)."""
+        self.end_screening = (*self.spheres.screening, self.end_margin)
+        """:attr:`SphereChecker.screening` and :attr:`end_margin` (the ``screen`` of the planners' kernels)."""
         self.counters = np.zeros(1, dtype=np.int64)
         self._balls, self._cover = base_spheres, None if self.sphere_model.covering else cover
         self.cover_model = self.sphere_model if self.sphere_model.covering else None if cover is None else \

@@ -343,7 +343,7 @@ def _search(ctx: PlanningContext, q_start: np.ndarray, goals, s: JPlusRRTSetting
     INVALID_START, the tree, the node that reached a goal, that goal, iterations)."""
     valid, escape = bool(ctx.is_valid(q_start)), None
     if not valid and s.escape and ctx.model.within_limits(q_start):  # random directions until the deadline
-        escape = certified_escape(ctx, q_start, q_start, rng, 0.5 * ctx.resolution, attempts=None, deadline=deadline)
+        escape = certified_escape(ctx, q_start, q_start, rng, ctx.end_margin, attempts=None, deadline=deadline)
     if not valid and escape is None:
         return PlanStatus.TIMEOUT if clock() >= deadline else PlanStatus.INVALID_START, None, -1, -1, 0
     tree = _Tree(q_start, goals.tools(q_start), s.max_nodes)

@@ -471,7 +471,7 @@ def _endpoints(ctx: PlanningContext, qs: np.ndarray, toward: np.ndarray, setting
     :func:`~prehensile.clock.clock`), every other row ``ESCAPE_ATTEMPTS`` directions or until
     then: a row the balls accept is a node without one); None if it is unusable (outside the
     limits, or colliding for the balls without an escape)."""
-    inside, free, near = ctx.spheres.screen(qs, 0.5 * ctx.resolution)
+    inside, free, near = ctx.spheres.screen(qs, ctx.end_margin)
     inside &= ctx.exact_screen(qs)  # no escape from a static contact or from inside a closed mesh
     valid, tight = inside & free, inside & near
     out: list[list | None] = []
@@ -479,7 +479,7 @@ def _endpoints(ctx: PlanningContext, qs: np.ndarray, toward: np.ndarray, setting
         escape = None
         if settings.escape and inside[i] and (tight[i] or not valid[i]):
             attempts = None if i < persistent and not valid[i] and np.isfinite(deadline) else ESCAPE_ATTEMPTS
-            escape = certified_escape(ctx, q, toward[i], rng, 0.5 * ctx.resolution, attempts=attempts,
+            escape = certified_escape(ctx, q, toward[i], rng, ctx.end_margin, attempts=attempts,
                                       deadline=deadline)
         if not valid[i] and escape is None:
             out.append(None)
